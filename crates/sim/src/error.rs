@@ -1,0 +1,125 @@
+//! The simulation crate's error type.
+
+use hooke_mesh::MeshError;
+
+/// Everything that can stop a scene from being built or a step from being taken.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// The mesh is invalid (see [`MeshError`]).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// A physical or numerical parameter is out of its domain.
+    #[error("invalid {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// Which parameter (e.g. "time step", "damping.dashpot").
+        name: String,
+        /// Its value, as text.
+        value: String,
+        /// Why it is rejected.
+        reason: String,
+    },
+    /// A pinned vertex index is not a vertex of the mesh.
+    #[error("pinned vertex {vertex} does not exist (the mesh has {vertex_count} vertices)")]
+    PinOutOfRange {
+        /// The offending index.
+        vertex: usize,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A pin region that contains no vertex: almost certainly a mistake in the scene.
+    #[error("the pin region {min:?}..{max:?} contains no vertex")]
+    EmptyPinRegion {
+        /// Lower corner (m).
+        min: Vec<f64>,
+        /// Upper corner (m).
+        max: Vec<f64>,
+    },
+    /// Every vertex is pinned: nothing can move.
+    #[error("all {vertex_count} vertices are pinned: nothing is left to simulate")]
+    EverythingPinned {
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// An explicit step above its stability bound, not forced by the user.
+    #[error(
+        "the step {step:.3e} s is above the explicit stability bound {bound:.3e} s of this scene \
+         (stiffest vertex: {vertex}); use at least {suggested_substeps} substeps, or force it"
+    )]
+    UnstableStep {
+        /// The (sub)step asked for (s).
+        step: f64,
+        /// The estimated largest stable step (s).
+        bound: f64,
+        /// The vertex with the highest natural frequency.
+        vertex: usize,
+        /// Substeps per frame that would bring the step under the bound.
+        suggested_substeps: usize,
+    },
+    /// The state became NaN or infinite.
+    #[error("step {step}: vertex {vertex} has a non-finite {quantity}; the simulation diverged")]
+    NonFinite {
+        /// The step (1-based) during which it happened.
+        step: usize,
+        /// The first vertex found.
+        vertex: usize,
+        /// "position" or "velocity".
+        quantity: &'static str,
+    },
+}
+
+impl SimError {
+    pub(crate) fn invalid(
+        name: impl Into<String>,
+        value: impl ToString,
+        reason: impl Into<String>,
+    ) -> Self {
+        SimError::InvalidParameter {
+            name: name.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// `Ok` if `value` is finite and ≥ 0.
+pub(crate) fn non_negative(name: &str, value: f64) -> Result<f64, SimError> {
+    if value >= 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(SimError::invalid(
+            name,
+            value,
+            "must be finite and non-negative",
+        ))
+    }
+}
+
+/// `Ok` if `value` is finite and > 0.
+pub(crate) fn positive(name: &str, value: f64) -> Result<f64, SimError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(SimError::invalid(
+            name,
+            value,
+            "must be finite and positive",
+        ))
+    }
+}
+
+/// `Ok` if every component is finite.
+pub(crate) fn finite_vector<const D: usize>(
+    name: &str,
+    value: &nalgebra::SVector<f64, D>,
+) -> Result<(), SimError> {
+    if value.iter().all(|c| c.is_finite()) {
+        Ok(())
+    } else {
+        Err(SimError::invalid(
+            name,
+            format!("{:?}", value.as_slice()),
+            "must be finite",
+        ))
+    }
+}

@@ -1,0 +1,561 @@
+//! Scene files: TOML documents that describe a scene completely (mesh source, material, pins,
+//! forces, damping, contact, integrator, number of frames, output format).
+//!
+//! ```toml
+//! name = "cloth-40"
+//!
+//! [mesh]
+//! generator = "cloth"      # "cloth" (n), "beam" (r) or "seed-2d"; or file = "path" (OBJ, STL, MSH, TetGen)
+//! n = 40
+//! stiffness = 1000.0       # N/m
+//! # bending = "interior-edges"              (triangle files only)
+//! # mass = { total = 1.0 }                  (kg, spread evenly), or
+//! # mass = { density = 1000.0, thickness = 0.001 }   (kg/m³, m)
+//!
+//! [pins]
+//! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
+//!
+//! [forces]
+//! gravity = [0.0, -9.81, 0.0]                           # m/s²
+//! # wind = { velocity = [1.0, 0.0, 0.0], coefficient = 0.01 }
+//! # buoyancy = { fluid_density = 1000.0, body_density = 500.0, surface = 0.0 }
+//! # attractor = { point = [0.5, 0.5, 0.5], strength = 100.0 }
+//!
+//! [damping]                # all default to 0
+//! # drag = 1.0             # 1/s
+//! # viscous = 0.0          # N·s/m
+//! # dashpot = 100.0        # N·s/m
+//!
+//! # [[contact]]
+//! # shape = "plane"        # or "box" (min, max) or "sphere" (center, radius)
+//! # point = [0.0, -1.0, 0.0]
+//! # normal = [0.0, 1.0, 0.0]
+//! # friction = 0.0
+//!
+//! [integrator]
+//! method = "symplectic-euler"
+//! time_step = 0.03333333333333333   # s, one frame
+//! # substeps = 10          # default: automatic, from the stability bound
+//! # allow_unstable = false
+//!
+//! [run]
+//! steps = 30
+//!
+//! # [output]
+//! # format = "obj"         # or "vtk"
+//! ```
+//!
+//! Unknown keys are errors. Every error names the file and the key (and, for syntax and type
+//! errors, the line and column).
+
+use std::path::{Path, PathBuf};
+
+use hooke_mesh::io::{read_mesh, Mesh};
+use hooke_mesh::{generators, Bending, MassModel, SpringMesh};
+use nalgebra::SVector;
+use serde::Deserialize;
+
+use crate::contact::{Contact, Shape};
+use crate::damping::Damping;
+use crate::forces::ExternalForce;
+use crate::integrator::{Integrator, Settings};
+use crate::scene::{Pins, Scene};
+use crate::scenes::{AnySetup, Setup};
+use crate::SimError;
+
+/// What went wrong with a scene file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SceneFileError {
+    /// The file could not be read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The scene file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not valid TOML, an unknown key, or a value of the wrong type (the message gives line, column
+    /// and key).
+    #[error("{}: {source}", path.display())]
+    Syntax {
+        /// The scene file.
+        path: PathBuf,
+        /// The parser's error.
+        #[source]
+        source: Box<toml::de::Error>,
+    },
+    /// A key whose value is not acceptable.
+    #[error("{}: [{key}]: {reason}", path.display())]
+    Invalid {
+        /// The scene file.
+        path: PathBuf,
+        /// The key, as a dotted path (e.g. `mesh.stiffness`).
+        key: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// Output frame format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FrameFormat {
+    /// Wavefront OBJ (surfaces, or lines for spring graphs).
+    #[default]
+    Obj,
+    /// Legacy VTK unstructured grid (ParaView).
+    Vtk,
+}
+
+/// A scene file's content: the setup, and the output format it asks for.
+#[derive(Clone, Debug)]
+pub struct SceneFile {
+    /// The scene, initial state, frames and settings.
+    pub setup: AnySetup,
+    /// The frame format the file asks for (OBJ by default).
+    pub format: FrameFormat,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Document {
+    name: Option<String>,
+    mesh: MeshSection,
+    pins: Option<PinsSection>,
+    #[serde(default)]
+    forces: ForcesSection,
+    #[serde(default)]
+    damping: Damping0,
+    #[serde(default)]
+    contact: Vec<ContactSection>,
+    integrator: IntegratorSection,
+    run: RunSection,
+    #[serde(default)]
+    output: OutputSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshSection {
+    generator: Option<String>,
+    file: Option<PathBuf>,
+    n: Option<usize>,
+    r: Option<usize>,
+    stiffness: Option<f64>,
+    bending: Option<String>,
+    mass: Option<MassSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, untagged)]
+enum MassSection {
+    Uniform {
+        total: f64,
+    },
+    Density {
+        density: f64,
+        thickness: Option<f64>,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PinsSection {
+    #[serde(default)]
+    vertices: Vec<u32>,
+    region: Option<RegionSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegionSection {
+    min: Vec<f64>,
+    max: Vec<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ForcesSection {
+    gravity: Option<Vec<f64>>,
+    wind: Option<WindSection>,
+    buoyancy: Option<BuoyancySection>,
+    attractor: Option<AttractorSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WindSection {
+    velocity: Vec<f64>,
+    coefficient: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BuoyancySection {
+    fluid_density: f64,
+    body_density: f64,
+    surface: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AttractorSection {
+    point: Vec<f64>,
+    strength: f64,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct Damping0 {
+    #[serde(default)]
+    drag: f64,
+    #[serde(default)]
+    viscous: f64,
+    #[serde(default)]
+    dashpot: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "shape", rename_all = "lowercase")]
+enum ContactSection {
+    Box {
+        min: Vec<f64>,
+        max: Vec<f64>,
+        #[serde(default)]
+        friction: f64,
+    },
+    Plane {
+        point: Vec<f64>,
+        normal: Vec<f64>,
+        #[serde(default)]
+        friction: f64,
+    },
+    Sphere {
+        center: Vec<f64>,
+        radius: f64,
+        #[serde(default)]
+        friction: f64,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IntegratorSection {
+    method: String,
+    time_step: f64,
+    substeps: Option<usize>,
+    #[serde(default)]
+    allow_unstable: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RunSection {
+    steps: usize,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct OutputSection {
+    #[serde(default)]
+    format: FrameFormat,
+}
+
+/// Read and build a scene file. Relative mesh paths are resolved against the file's directory.
+///
+/// # Errors
+/// [`SceneFileError`], naming the file and the key.
+pub fn load_scene(path: &Path) -> Result<SceneFile, SceneFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_scene(&text, path)
+}
+
+/// Build a scene from TOML text; `path` names the file in errors and anchors relative mesh paths.
+///
+/// # Errors
+/// As [`load_scene`].
+pub fn parse_scene(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
+    let doc: Document = toml::from_str(text).map_err(|source| SceneFileError::Syntax {
+        path: path.to_path_buf(),
+        source: Box::new(source),
+    })?;
+    let ctx = Context { path };
+    let name = doc.name.clone().unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into())
+    });
+    let setup = match ctx.mesh(&doc.mesh)? {
+        AnyMesh::Two(mesh) => AnySetup::Two(ctx.setup(name, mesh, &doc)?),
+        AnyMesh::Three(mesh) => AnySetup::Three(ctx.setup(name, mesh, &doc)?),
+    };
+    Ok(SceneFile {
+        setup,
+        format: doc.output.format,
+    })
+}
+
+enum AnyMesh {
+    Two(SpringMesh<2>),
+    Three(SpringMesh<3>),
+}
+
+struct Context<'a> {
+    path: &'a Path,
+}
+
+impl Context<'_> {
+    fn invalid(&self, key: &str, reason: impl ToString) -> SceneFileError {
+        SceneFileError::Invalid {
+            path: self.path.to_path_buf(),
+            key: key.to_string(),
+            reason: reason.to_string(),
+        }
+    }
+
+    fn vector<const D: usize>(
+        &self,
+        key: &str,
+        values: &[f64],
+    ) -> Result<SVector<f64, D>, SceneFileError> {
+        if values.len() != D {
+            return Err(self.invalid(
+                key,
+                format!(
+                    "expected {D} components (the scene is {D}D), got {}",
+                    values.len()
+                ),
+            ));
+        }
+        Ok(SVector::from_column_slice(values))
+    }
+
+    fn stiffness(&self, mesh: &MeshSection) -> Result<f64, SceneFileError> {
+        mesh.stiffness
+            .ok_or_else(|| self.invalid("mesh.stiffness", "missing: the spring stiffness in N/m"))
+    }
+
+    fn mesh(&self, m: &MeshSection) -> Result<AnyMesh, SceneFileError> {
+        let mesh_err = |key: &str, e: hooke_mesh::MeshError| self.invalid(key, e);
+        match (&m.generator, &m.file) {
+            (Some(_), Some(_)) => {
+                Err(self.invalid("mesh", "give either `generator` or `file`, not both"))
+            }
+            (None, None) => Err(self.invalid("mesh", "missing `generator` or `file`")),
+            (Some(generator), None) => {
+                if m.bending.is_some() || m.mass.is_some() {
+                    return Err(self.invalid(
+                        "mesh",
+                        "`bending` and `mass` apply to mesh files; generators build the scene as SCENES.md defines it",
+                    ));
+                }
+                match generator.as_str() {
+                    "cloth" => {
+                        let n = m.n.ok_or_else(|| self.invalid("mesh.n", "missing: cloth needs n (vertices per side)"))?;
+                        generators::cloth(n, self.stiffness(m)?)
+                            .map(AnyMesh::Three)
+                            .map_err(|e| mesh_err("mesh", e))
+                    }
+                    "beam" => {
+                        let r = m.r.ok_or_else(|| self.invalid("mesh.r", "missing: beam needs r (cubes across)"))?;
+                        let mesh = generators::beam(r).map_err(|e| mesh_err("mesh.r", e))?;
+                        let k = self.stiffness(m)?;
+                        mesh.map_stiffness(|_, _| k)
+                            .map(AnyMesh::Three)
+                            .map_err(|e| mesh_err("mesh.stiffness", e))
+                    }
+                    "seed-2d" => {
+                        let mesh = generators::seed_2d().map_err(|e| mesh_err("mesh", e))?;
+                        match m.stiffness {
+                            Some(k) => mesh.map_stiffness(|_, _| k).map_err(|e| mesh_err("mesh.stiffness", e)),
+                            None => Ok(mesh),
+                        }
+                        .map(AnyMesh::Two)
+                    }
+                    other => Err(self.invalid(
+                        "mesh.generator",
+                        format!("unknown generator {other:?}; expected \"cloth\", \"beam\" or \"seed-2d\""),
+                    )),
+                }
+            }
+            (None, Some(file)) => {
+                let file = self.path.parent().unwrap_or(Path::new("")).join(file);
+                let stiffness = self.stiffness(m)?;
+                let mass = match &m.mass {
+                    None => {
+                        return Err(self.invalid(
+                            "mesh.mass",
+                            "missing: { total = kg } or { density = kg/m³, thickness = m }",
+                        ))
+                    }
+                    Some(MassSection::Uniform { total }) => MassModel::Uniform { total: *total },
+                    Some(MassSection::Density { density, thickness }) => MassModel::Density {
+                        density: *density,
+                        thickness: thickness.unwrap_or(1.0),
+                    },
+                };
+                let bending =
+                    match m.bending.as_deref() {
+                        None | Some("none") => Bending::None,
+                        Some("interior-edges") => Bending::InteriorEdges,
+                        Some(other) => return Err(self.invalid(
+                            "mesh.bending",
+                            format!(
+                                "unknown value {other:?}; expected \"none\" or \"interior-edges\""
+                            ),
+                        )),
+                    };
+                let loaded = read_mesh(&file).map_err(|e| mesh_err("mesh.file", e))?;
+                match loaded {
+                    Mesh::Surface(tri) => {
+                        if matches!(mass, MassModel::Density { .. }) && m.mass.as_ref().is_some_and(|s| matches!(s, MassSection::Density { thickness: None, .. })) {
+                            return Err(self.invalid("mesh.mass.thickness", "missing: a surface mesh needs a thickness (m) to turn density into mass"));
+                        }
+                        SpringMesh::from_triangles(&tri, stiffness, bending, mass)
+                    }
+                    Mesh::Volume(tet) => {
+                        if bending != Bending::None {
+                            return Err(self.invalid("mesh.bending", "bending springs apply to triangle meshes only"));
+                        }
+                        SpringMesh::from_tetrahedra(&tet, stiffness, mass)
+                    }
+                }
+                .map(AnyMesh::Three)
+                .map_err(|e| mesh_err("mesh", e))
+            }
+        }
+    }
+
+    fn setup<const D: usize>(
+        &self,
+        name: String,
+        mesh: SpringMesh<D>,
+        doc: &Document,
+    ) -> Result<Setup<D>, SceneFileError> {
+        let sim = |key: &'static str| move |e: SimError| self.invalid(key, e);
+        let i = &doc.integrator;
+        let mut scene = Scene::new(mesh, i.time_step).map_err(sim("integrator.time_step"))?;
+        if let Some(p) = &doc.pins {
+            if !p.vertices.is_empty() {
+                scene = scene
+                    .with_pins(Pins::Vertices(p.vertices.clone()))
+                    .map_err(sim("pins.vertices"))?;
+            }
+            if let Some(region) = &p.region {
+                let min = self.vector::<D>("pins.region.min", &region.min)?;
+                let max = self.vector::<D>("pins.region.max", &region.max)?;
+                let mut pins: Vec<u32> = scene.pinned().to_vec();
+                let in_region = scene
+                    .clone()
+                    .with_pins(Pins::Region { min, max })
+                    .map_err(sim("pins.region"))?;
+                pins.extend_from_slice(in_region.pinned());
+                scene = scene.with_pins(Pins::Vertices(pins)).map_err(sim("pins"))?;
+            }
+        }
+        let f = &doc.forces;
+        let mut forces = Vec::new();
+        if let Some(g) = &f.gravity {
+            forces.push(ExternalForce::Gravity {
+                acceleration: self.vector("forces.gravity", g)?,
+            });
+        }
+        if let Some(w) = &f.wind {
+            forces.push(ExternalForce::Wind {
+                velocity: self.vector("forces.wind.velocity", &w.velocity)?,
+                coefficient: w.coefficient,
+            });
+        }
+        if let Some(b) = &f.buoyancy {
+            forces.push(ExternalForce::Buoyancy {
+                fluid_density: b.fluid_density,
+                body_density: b.body_density,
+                surface: b.surface,
+            });
+        }
+        if let Some(a) = &f.attractor {
+            forces.push(ExternalForce::Attractor {
+                point: self.vector("forces.attractor.point", &a.point)?,
+                strength: a.strength,
+            });
+        }
+        scene = scene.with_forces(forces).map_err(sim("forces"))?;
+        let d = &doc.damping;
+        scene = scene
+            .with_damping(Damping {
+                drag: d.drag,
+                viscous: d.viscous,
+                dashpot: d.dashpot,
+            })
+            .map_err(sim("damping"))?;
+        let mut contacts = Vec::new();
+        for (index, c) in doc.contact.iter().enumerate() {
+            let key = |field: &str| format!("contact[{index}].{field}");
+            let contact = match c {
+                ContactSection::Box { min, max, friction } => Contact {
+                    shape: Shape::Box {
+                        min: self.vector(&key("min"), min)?,
+                        max: self.vector(&key("max"), max)?,
+                    },
+                    friction: *friction,
+                },
+                ContactSection::Plane {
+                    point,
+                    normal,
+                    friction,
+                } => Contact {
+                    shape: Shape::Plane {
+                        point: self.vector(&key("point"), point)?,
+                        normal: self.vector(&key("normal"), normal)?,
+                    },
+                    friction: *friction,
+                },
+                ContactSection::Sphere {
+                    center,
+                    radius,
+                    friction,
+                } => Contact {
+                    shape: Shape::Sphere {
+                        center: self.vector(&key("center"), center)?,
+                        radius: *radius,
+                    },
+                    friction: *friction,
+                },
+            };
+            contacts.push(
+                contact
+                    .validated()
+                    .map_err(|e| self.invalid(&format!("contact[{index}]"), e))?,
+            );
+        }
+        scene = scene.with_contacts(contacts).map_err(sim("contact"))?;
+        let integrator: Integrator = i
+            .method
+            .parse()
+            .map_err(|e| self.invalid("integrator.method", e))?;
+        if i.substeps == Some(0) {
+            return Err(self.invalid("integrator.substeps", "must be at least 1"));
+        }
+        if doc.run.steps == 0 {
+            return Err(self.invalid("run.steps", "must be at least 1"));
+        }
+        let settings = Settings {
+            integrator,
+            substeps: i.substeps,
+            allow_unstable: i.allow_unstable,
+            ..Settings::default()
+        };
+        Ok(Setup {
+            name,
+            initial: scene.initial_state(),
+            scene,
+            steps: doc.run.steps,
+            settings,
+        })
+    }
+}

@@ -1,0 +1,200 @@
+//! The canonical scenes of `SCENES.md`, built exactly as written there, by name.
+
+use hooke_mesh::generators::{self, SEED_2D_REST_LENGTH};
+use nalgebra::{SVector, Vector2, Vector3};
+
+use crate::contact::{Contact, Shape};
+use crate::damping::Damping;
+use crate::forces::ExternalForce;
+use crate::integrator::{Integrator, Settings};
+use crate::scene::{Pins, Scene, State};
+use crate::SimError;
+
+/// Gravity of the 3D scenes, m/s² (SCENES.md).
+pub const GRAVITY: f64 = 9.81;
+/// Gravity of seed 004's 2D scene, m/s² (the seed uses 9.8).
+pub const SEED_2D_GRAVITY: f64 = 9.8;
+/// cloth-N soft stiffness, N/m.
+pub const CLOTH_SOFT_STIFFNESS: f64 = 1e3;
+/// cloth-N stiff stiffness, N/m.
+pub const CLOTH_STIFF_STIFFNESS: f64 = 1e5;
+/// Frame time step of cloth and beam, s.
+pub const FRAME_TIME_STEP: f64 = 1.0 / 30.0;
+
+/// A scene ready to run: the scene, its initial state, how many frames, and how to integrate.
+#[derive(Clone, Debug)]
+pub struct Setup<const D: usize> {
+    /// The scene's name (e.g. `cloth-40`).
+    pub name: String,
+    /// The scene.
+    pub scene: Scene<D>,
+    /// The state at time 0.
+    pub initial: State<D>,
+    /// Number of frames to run.
+    pub steps: usize,
+    /// The integration settings.
+    pub settings: Settings,
+}
+
+impl<const D: usize> Setup<D> {
+    fn new(name: String, scene: Scene<D>, steps: usize, settings: Settings) -> Self {
+        Setup {
+            name,
+            initial: scene.initial_state(),
+            scene,
+            steps,
+            settings,
+        }
+    }
+}
+
+/// A setup in 2D or 3D.
+#[derive(Clone, Debug)]
+pub enum AnySetup {
+    /// A 2D scene (seed-2d).
+    Two(Setup<2>),
+    /// A 3D scene (cloth, beam, meshes from files).
+    Three(Setup<3>),
+}
+
+impl AnySetup {
+    /// The scene's name.
+    pub fn name(&self) -> &str {
+        match self {
+            AnySetup::Two(s) => &s.name,
+            AnySetup::Three(s) => &s.name,
+        }
+    }
+}
+
+/// One line of `hooke scenes`: a name and what it is.
+pub fn builtin_scenes() -> Vec<(String, String)> {
+    let mut list = Vec::new();
+    for n in [10, 20, 40, 80, 160, 320] {
+        list.push((
+            format!("cloth-{n}"),
+            format!("{n}×{n} cloth, k = 1e3 N/m, pinned at two corners, 30 frames of 1/30 s"),
+        ));
+        list.push((
+            format!("cloth-{n}-stiff"),
+            format!("{n}×{n} cloth, k = 1e5 N/m"),
+        ));
+    }
+    for r in [2, 4, 8, 16] {
+        list.push((
+            format!("beam-{r}"),
+            format!("4×1×1 m tetrahedral beam, {}×{r}×{r} cubes, k = 1e4 N/m, 1000 kg/m³, clamped at x = 0", 4 * r),
+        ));
+    }
+    list.push((
+        "seed-2d".into(),
+        "seed 004's 2D particles in a unit box: three particles fall, springs hold, walls stop them".into(),
+    ));
+    list
+}
+
+/// Build a built-in scene by name: `cloth-N`, `cloth-N-stiff` (any N ≥ 2), `beam-R` (any R ≥ 1) or
+/// `seed-2d`. Returns `None` for an unknown name.
+///
+/// # Errors
+/// A [`SimError`] if the parameters are out of range (e.g. `cloth-1`).
+pub fn builtin(name: &str) -> Option<Result<AnySetup, SimError>> {
+    if name == "seed-2d" {
+        return Some(seed_2d().map(AnySetup::Two));
+    }
+    if let Some(rest) = name.strip_prefix("cloth-") {
+        let (size, stiff) = match rest.strip_suffix("-stiff") {
+            Some(size) => (size, true),
+            None => (rest, false),
+        };
+        let n: usize = size.parse().ok()?;
+        return Some(cloth(n, stiff).map(AnySetup::Three));
+    }
+    if let Some(size) = name.strip_prefix("beam-") {
+        let r: usize = size.parse().ok()?;
+        return Some(beam(r).map(AnySetup::Three));
+    }
+    None
+}
+
+fn gravity_3d() -> ExternalForce<3> {
+    ExternalForce::Gravity {
+        acceleration: Vector3::new(0.0, -GRAVITY, 0.0),
+    }
+}
+
+/// cloth-N (SCENES.md): soft (k = 1e3 N/m) or stiff (k = 1e5 N/m); vertices 0 and N−1 pinned;
+/// gravity; h = 1/30 s; 30 frames; symplectic Euler with automatic substeps.
+///
+/// # Errors
+/// [`SimError::Mesh`] if `n < 2`.
+pub fn cloth(n: usize, stiff: bool) -> Result<Setup<3>, SimError> {
+    let k = if stiff {
+        CLOTH_STIFF_STIFFNESS
+    } else {
+        CLOTH_SOFT_STIFFNESS
+    };
+    let mesh = generators::cloth(n, k)?;
+    let scene = Scene::new(mesh, FRAME_TIME_STEP)?
+        .with_pins(Pins::Vertices(vec![0, n as u32 - 1]))?
+        .with_forces(vec![gravity_3d()])?;
+    let name = if stiff {
+        format!("cloth-{n}-stiff")
+    } else {
+        format!("cloth-{n}")
+    };
+    Ok(Setup::new(name, scene, 30, Settings::default()))
+}
+
+/// beam-R (SCENES.md): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
+///
+/// # Errors
+/// [`SimError::Mesh`] if `r == 0`.
+pub fn beam(r: usize) -> Result<Setup<3>, SimError> {
+    let mesh = generators::beam(r)?;
+    let clamped: Vec<u32> = mesh
+        .positions()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.x == 0.0)
+        .map(|(v, _)| v as u32)
+        .collect();
+    let scene = Scene::new(mesh, FRAME_TIME_STEP)?
+        .with_pins(Pins::Vertices(clamped))?
+        .with_forces(vec![gravity_3d()])?;
+    Ok(Setup::new(
+        format!("beam-{r}"),
+        scene,
+        30,
+        Settings::default(),
+    ))
+}
+
+/// seed-2d (SCENES.md, seed 004): unit box walls, particle mass 1 kg, frames of 10 substeps of
+/// 1e-3 s, spring k = Y/l = 1e4 N/m, drag 1/s, dashpot 100 N·s/m, gravity 9.8 m/s²; 300 frames (3 s).
+///
+/// # Errors
+/// Never for the fixed parameters; the `Result` is for uniformity.
+pub fn seed_2d() -> Result<Setup<2>, SimError> {
+    let mesh = generators::seed_2d()?;
+    debug_assert_eq!(mesh.springs()[0].rest_length, SEED_2D_REST_LENGTH);
+    let scene = Scene::new(mesh, 1e-2)?
+        .with_forces(vec![ExternalForce::Gravity {
+            acceleration: Vector2::new(0.0, -SEED_2D_GRAVITY),
+        }])?
+        .with_damping(Damping {
+            drag: 1.0,
+            viscous: 0.0,
+            dashpot: 100.0,
+        })?
+        .with_contacts(vec![Contact::new(Shape::Box {
+            min: SVector::zeros(),
+            max: Vector2::new(1.0, 1.0),
+        })])?;
+    let settings = Settings {
+        integrator: Integrator::SymplecticEuler,
+        substeps: Some(10),
+        ..Settings::default()
+    };
+    Ok(Setup::new("seed-2d".into(), scene, 300, settings))
+}

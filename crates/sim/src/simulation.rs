@@ -1,0 +1,258 @@
+//! A running simulation: a scene, its state, and the workspaces of its integrator.
+
+use std::time::{Duration, Instant};
+
+use hooke_assembly::{Dashpot, SpringForces};
+use hooke_solvers::SolveSummary;
+use nalgebra::SVector;
+use rayon::prelude::*;
+
+use crate::integrator::{Integrator, Settings};
+use crate::stability::{stability_bound, StabilityBound};
+use crate::{Energy, Scene, SimError, State};
+
+/// Auto substepping never asks for more than this many substeps per frame: past it the scene
+/// needs an implicit integrator, and saying so beats running for hours.
+pub const MAX_AUTO_SUBSTEPS: usize = 1_000_000;
+
+/// Vertex loops below this size run serially.
+const PARALLEL_VERTICES: usize = 8 * 1024;
+
+/// What one frame step did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// Substeps taken (1 for implicit methods).
+    pub substeps: usize,
+    /// The solver's summary, for integrators that solve a system.
+    pub solver: Option<SolveSummary>,
+    /// Wall time of the step.
+    pub wall_time: Duration,
+}
+
+/// A scene being simulated. Buffers are allocated once in [`Simulation::new`]; steps do not allocate.
+#[derive(Debug)]
+pub struct Simulation<const D: usize> {
+    scene: Scene<D>,
+    state: State<D>,
+    settings: Settings,
+    substeps: usize,
+    bound: StabilityBound,
+    spring_forces: SpringForces<D>,
+    force: Vec<SVector<f64, D>>,
+    steps_taken: usize,
+}
+
+impl<const D: usize> Simulation<D> {
+    /// Start simulating `scene` from `state` with `settings`.
+    ///
+    /// # Errors
+    /// - [`SimError::InvalidParameter`] if `state` does not match the mesh, holds non-finite
+    ///   values, or substeps are 0 or too many;
+    /// - [`SimError::UnstableStep`] if an explicit step is above the estimated stability bound and
+    ///   `settings.allow_unstable` is false.
+    pub fn new(scene: Scene<D>, state: State<D>, settings: Settings) -> Result<Self, SimError> {
+        let n = scene.mesh().vertex_count();
+        for (what, len) in [
+            ("positions", state.positions.len()),
+            ("velocities", state.velocities.len()),
+        ] {
+            if len != n {
+                return Err(SimError::invalid(
+                    format!("initial {what}"),
+                    format!("{len} entries"),
+                    format!("the mesh has {n} vertices"),
+                ));
+            }
+        }
+        check_finite(&state, 0)?;
+        let bound = stability_bound(&scene);
+        let h = scene.time_step();
+        let substeps = if settings.integrator.is_explicit() {
+            let substeps = match settings.substeps {
+                Some(0) => return Err(SimError::invalid("substeps", 0, "must be at least 1")),
+                Some(s) => s,
+                None => {
+                    let needed = (h / bound.safe_step).ceil();
+                    if needed > MAX_AUTO_SUBSTEPS as f64 && !settings.allow_unstable {
+                        return Err(SimError::invalid(
+                            "substeps",
+                            needed,
+                            format!(
+                                "an explicit method would need {needed:.0} substeps per frame \
+                                 (more than {MAX_AUTO_SUBSTEPS}); use an implicit integrator"
+                            ),
+                        ));
+                    }
+                    (needed as usize).clamp(1, MAX_AUTO_SUBSTEPS)
+                }
+            };
+            let sub = h / substeps as f64;
+            if sub > bound.estimated_step && !settings.allow_unstable {
+                return Err(SimError::UnstableStep {
+                    step: sub,
+                    bound: bound.estimated_step,
+                    vertex: bound.stiffest_vertex,
+                    suggested_substeps: (h / bound.safe_step).ceil() as usize,
+                });
+            }
+            substeps
+        } else {
+            1
+        };
+        let spring_forces = SpringForces::new(n, scene.mesh().springs());
+        Ok(Simulation {
+            force: vec![SVector::zeros(); n],
+            spring_forces,
+            scene,
+            state,
+            settings,
+            substeps,
+            bound,
+            steps_taken: 0,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene<D> {
+        &self.scene
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &State<D> {
+        &self.state
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> Settings {
+        self.settings
+    }
+
+    /// Substeps per frame (1 for implicit methods).
+    pub fn substeps(&self) -> usize {
+        self.substeps
+    }
+
+    /// The scene's explicit stability bound.
+    pub fn stability_bound(&self) -> StabilityBound {
+        self.bound
+    }
+
+    /// Frames stepped so far.
+    pub fn steps_taken(&self) -> usize {
+        self.steps_taken
+    }
+
+    /// Energy of the current state (J).
+    pub fn energy(&self) -> Energy {
+        self.scene.energy(&self.state)
+    }
+
+    /// Advance one frame of the scene's time step.
+    ///
+    /// # Errors
+    /// [`SimError::NonFinite`] if the state became NaN or infinite (the simulation diverged); the
+    /// state is then left as it was at the failure.
+    pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let start = Instant::now();
+        let h = self.scene.time_step() / self.substeps as f64;
+        for _ in 0..self.substeps {
+            self.explicit_substep(h);
+        }
+        self.steps_taken += 1;
+        check_finite(&self.state, self.steps_taken)?;
+        Ok(StepReport {
+            substeps: self.substeps,
+            solver: None,
+            wall_time: start.elapsed(),
+        })
+    }
+
+    /// Total force (N) on every vertex at the current state into `self.force`.
+    fn compute_forces(&mut self) {
+        let damping = self.scene.damping();
+        let dashpot = (damping.dashpot > 0.0).then_some(Dashpot {
+            coefficient: damping.dashpot,
+            velocities: &self.state.velocities,
+        });
+        self.spring_forces.compute(
+            self.scene.mesh().springs(),
+            &self.state.positions,
+            dashpot,
+            &mut self.force,
+            self.settings.parallel,
+        );
+    }
+
+    fn explicit_substep(&mut self, h: f64) {
+        self.compute_forces();
+        let scene = &self.scene;
+        let forces = scene.forces();
+        let damping = scene.damping();
+        let drag = (-h * damping.drag).exp();
+        let symplectic = matches!(self.settings.integrator, Integrator::SymplecticEuler);
+        let update = |(((x, v), f), (&m, &pinned)): (
+            (
+                (&mut SVector<f64, D>, &mut SVector<f64, D>),
+                &SVector<f64, D>,
+            ),
+            (&f64, &bool),
+        )| {
+            if pinned {
+                *v = SVector::zeros();
+                return;
+            }
+            let mut total = *f;
+            if !forces.is_empty() {
+                total += forces.force(m, x, v);
+            }
+            if damping.viscous > 0.0 {
+                total -= *v * damping.viscous;
+            }
+            let v_old = *v;
+            *v += total * (h / m);
+            *v *= drag;
+            *x += if symplectic { *v * h } else { v_old * h };
+            for contact in scene.contacts() {
+                contact.project(x, v);
+            }
+        };
+        let masses = scene.mesh().masses();
+        let pinned = scene.is_pinned();
+        let state = &mut self.state;
+        if self.settings.parallel && masses.len() >= PARALLEL_VERTICES {
+            state
+                .positions
+                .par_iter_mut()
+                .zip(state.velocities.par_iter_mut())
+                .zip(self.force.par_iter())
+                .zip(masses.par_iter().zip(pinned.par_iter()))
+                .with_min_len(2048)
+                .for_each(update);
+        } else {
+            state
+                .positions
+                .iter_mut()
+                .zip(state.velocities.iter_mut())
+                .zip(self.force.iter())
+                .zip(masses.iter().zip(pinned.iter()))
+                .for_each(update);
+        }
+        state.time += h;
+    }
+}
+
+fn check_finite<const D: usize>(state: &State<D>, step: usize) -> Result<(), SimError> {
+    for (quantity, values) in [
+        ("position", &state.positions),
+        ("velocity", &state.velocities),
+    ] {
+        if let Some(vertex) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(SimError::NonFinite {
+                step,
+                vertex,
+                quantity,
+            });
+        }
+    }
+    Ok(())
+}
