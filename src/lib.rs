@@ -15,3 +15,8 @@ pub use hooke_assembly as assembly;
 pub use hooke_mesh as mesh;
 pub use hooke_sim as sim;
 pub use hooke_solvers as solvers;
+
+/// The README's code blocks, compiled and run as doc tests so that the README stays true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

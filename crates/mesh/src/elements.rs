@@ -123,7 +123,7 @@ impl TriMesh {
             let [a, b, c] = t.map(|v| &positions[v as usize]);
             let measure = triangle_area(a, b, c);
             let scale = longest_edge([a, b, c]).powi(2);
-            if !(measure > DEGENERACY_TOLERANCE * scale) {
+            if measure.is_nan() || measure <= DEGENERACY_TOLERANCE * scale {
                 return Err(MeshError::Degenerate {
                     kind: ElementKind::Triangle,
                     element,
@@ -218,7 +218,7 @@ impl TetMesh {
             let [a, b, c, d] = t.map(|v| &positions[v as usize]);
             let measure = tetrahedron_signed_volume(a, b, c, d).abs();
             let scale = longest_edge([a, b, c, d]).powi(3);
-            if !(measure > DEGENERACY_TOLERANCE * scale) {
+            if measure.is_nan() || measure <= DEGENERACY_TOLERANCE * scale {
                 return Err(MeshError::Degenerate {
                     kind: ElementKind::Tetrahedron,
                     element,

@@ -273,7 +273,7 @@ impl<const D: usize> RadiusGraph<D> {
                 RestLength::Fixed(l) => l,
                 RestLength::Measured => (self.positions[k as usize] - position).norm(),
             };
-            if !(rest_length > 0.0) {
+            if rest_length.is_nan() || rest_length <= 0.0 {
                 return Err(MeshError::InvalidRestLength {
                     spring: self.springs.len(),
                     i: k as usize,
@@ -363,7 +363,7 @@ mod tests {
         let n = 4;
         let c = cloth(n, 1.0).unwrap();
         let p = c.positions();
-        assert_eq!(p[1 * n + 2], Vec3::new(1.0 / 3.0, 0.0, 2.0 / 3.0));
+        assert_eq!(p[n + 2], Vec3::new(1.0 / 3.0, 0.0, 2.0 / 3.0));
         let pairs: Vec<_> = c.springs().iter().take(6).map(|s| (s.i, s.j)).collect();
         // i = 0, j = 0: right (0,0)-(1,0) = 0-4, up 0-1, diagonal 0-5, anti-diagonal 4-1,
         // two-ring 0-8 and 0-2.

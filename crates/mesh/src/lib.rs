@@ -22,6 +22,9 @@
 mod elements;
 mod error;
 pub mod generators;
+pub mod io;
+#[cfg(feature = "proptest-support")]
+pub mod proptest_support;
 mod spring_mesh;
 
 pub use elements::{

@@ -56,6 +56,23 @@ pub enum SimError {
         /// Substeps per frame that would bring the step under the bound.
         suggested_substeps: usize,
     },
+    /// The state ran away: a coordinate far outside any plausible motion of the scene.
+    #[error(
+        "step {step}: vertex {vertex} has {quantity} {value:.3e}, beyond the divergence limit \
+         {limit:.3e}; the simulation exploded"
+    )]
+    Diverged {
+        /// The step (1-based) during which it happened.
+        step: usize,
+        /// The first vertex found.
+        vertex: usize,
+        /// "position" (m) or "velocity" (m/s).
+        quantity: &'static str,
+        /// The offending coordinate's magnitude.
+        value: f64,
+        /// The limit it crossed.
+        limit: f64,
+    },
     /// The state became NaN or infinite.
     #[error("step {step}: vertex {vertex} has a non-finite {quantity}; the simulation diverged")]
     NonFinite {

@@ -399,17 +399,18 @@ impl Context<'_> {
                         thickness: thickness.unwrap_or(1.0),
                     },
                 };
-                let bending =
-                    match m.bending.as_deref() {
-                        None | Some("none") => Bending::None,
-                        Some("interior-edges") => Bending::InteriorEdges,
-                        Some(other) => return Err(self.invalid(
+                let bending = match m.bending.as_deref() {
+                    None | Some("none") => Bending::None,
+                    Some("interior-edges") => Bending::InteriorEdges,
+                    Some(other) => {
+                        return Err(self.invalid(
                             "mesh.bending",
                             format!(
                                 "unknown value {other:?}; expected \"none\" or \"interior-edges\""
                             ),
-                        )),
-                    };
+                        ))
+                    }
+                };
                 let loaded = read_mesh(&file).map_err(|e| mesh_err("mesh.file", e))?;
                 match loaded {
                     Mesh::Surface(tri) => {

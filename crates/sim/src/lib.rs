@@ -27,7 +27,7 @@
 pub mod contact;
 pub mod damping;
 mod error;
-// pub mod file;
+pub mod file;
 pub mod forces;
 pub mod integrator;
 mod scene;

@@ -48,7 +48,7 @@ pub struct Energy {
 ///
 /// Invariants: the mesh is valid; pinned indices exist, are sorted and unique, and leave at least
 /// one vertex free; forces, damping and contacts are validated; the time step is positive and finite.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Scene<const D: usize> {
     mesh: SpringMesh<D>,
     pinned: Vec<u32>,

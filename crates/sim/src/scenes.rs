@@ -22,7 +22,7 @@ pub const CLOTH_STIFF_STIFFNESS: f64 = 1e5;
 pub const FRAME_TIME_STEP: f64 = 1.0 / 30.0;
 
 /// A scene ready to run: the scene, its initial state, how many frames, and how to integrate.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Setup<const D: usize> {
     /// The scene's name (e.g. `cloth-40`).
     pub name: String,
@@ -49,7 +49,7 @@ impl<const D: usize> Setup<D> {
 }
 
 /// A setup in 2D or 3D.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum AnySetup {
     /// A 2D scene (seed-2d).
     Two(Setup<2>),

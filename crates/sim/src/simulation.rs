@@ -13,7 +13,10 @@ use crate::{Energy, Scene, SimError, State};
 
 /// Auto substepping never asks for more than this many substeps per frame: past it the scene
 /// needs an implicit integrator, and saying so beats running for hours.
-pub const MAX_AUTO_SUBSTEPS: usize = 1_000_000;
+pub const MAX_AUTO_SUBSTEPS: usize = 100_000;
+
+/// A coordinate beyond this many times the scene's size (plus 1 m) means the run exploded.
+pub const DIVERGENCE_FACTOR: f64 = 1e6;
 
 /// Vertex loops below this size run serially.
 const PARALLEL_VERTICES: usize = 8 * 1024;
@@ -40,6 +43,8 @@ pub struct Simulation<const D: usize> {
     spring_forces: SpringForces<D>,
     force: Vec<SVector<f64, D>>,
     steps_taken: usize,
+    start_time: f64,
+    divergence_limit: f64,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -67,19 +72,22 @@ impl<const D: usize> Simulation<D> {
         check_finite(&state, 0)?;
         let bound = stability_bound(&scene);
         let h = scene.time_step();
+        let (safe_step, estimated_step) = bound.for_integrator(settings.integrator, h);
         let substeps = if settings.integrator.is_explicit() {
             let substeps = match settings.substeps {
                 Some(0) => return Err(SimError::invalid("substeps", 0, "must be at least 1")),
                 Some(s) => s,
                 None => {
-                    let needed = (h / bound.safe_step).ceil();
+                    let needed = (h / safe_step).ceil();
                     if needed > MAX_AUTO_SUBSTEPS as f64 && !settings.allow_unstable {
                         return Err(SimError::invalid(
                             "substeps",
                             needed,
                             format!(
-                                "an explicit method would need {needed:.0} substeps per frame \
-                                 (more than {MAX_AUTO_SUBSTEPS}); use an implicit integrator"
+                                "{} would need {needed:.0} substeps per frame to stay stable \
+                                 (more than {MAX_AUTO_SUBSTEPS}); use symplectic Euler or an \
+                                 implicit integrator, or give the substeps and force the run",
+                                settings.integrator
                             ),
                         ));
                     }
@@ -87,12 +95,12 @@ impl<const D: usize> Simulation<D> {
                 }
             };
             let sub = h / substeps as f64;
-            if sub > bound.estimated_step && !settings.allow_unstable {
+            if sub > estimated_step && !settings.allow_unstable {
                 return Err(SimError::UnstableStep {
                     step: sub,
-                    bound: bound.estimated_step,
+                    bound: estimated_step,
                     vertex: bound.stiffest_vertex,
-                    suggested_substeps: (h / bound.safe_step).ceil() as usize,
+                    suggested_substeps: (h / safe_step).ceil() as usize,
                 });
             }
             substeps
@@ -100,6 +108,13 @@ impl<const D: usize> Simulation<D> {
             1
         };
         let spring_forces = SpringForces::new(n, scene.mesh().springs());
+        let start_time = state.time;
+        let extent = state
+            .positions
+            .iter()
+            .flat_map(|p| p.iter())
+            .fold(0.0f64, |m, c| m.max(c.abs()));
+        let divergence_limit = DIVERGENCE_FACTOR * (1.0 + extent);
         Ok(Simulation {
             force: vec![SVector::zeros(); n],
             spring_forces,
@@ -109,6 +124,8 @@ impl<const D: usize> Simulation<D> {
             substeps,
             bound,
             steps_taken: 0,
+            start_time,
+            divergence_limit,
         })
     }
 
@@ -159,12 +176,40 @@ impl<const D: usize> Simulation<D> {
             self.explicit_substep(h);
         }
         self.steps_taken += 1;
+        // Frame times are exact multiples of h: summing substeps would drift by round-off.
+        self.state.time = self.start_time + self.steps_taken as f64 * self.scene.time_step();
         check_finite(&self.state, self.steps_taken)?;
+        self.check_bounded()?;
         Ok(StepReport {
             substeps: self.substeps,
             solver: None,
             wall_time: start.elapsed(),
         })
+    }
+
+    /// Positions beyond the divergence limit, or velocities that would cross it within one frame,
+    /// mean the run exploded (energies would overflow long before NaN appears).
+    fn check_bounded(&self) -> Result<(), SimError> {
+        let limit = self.divergence_limit;
+        let velocity_limit = limit / self.scene.time_step();
+        for (quantity, values, limit) in [
+            ("position", &self.state.positions, limit),
+            ("velocity", &self.state.velocities, velocity_limit),
+        ] {
+            for (vertex, p) in values.iter().enumerate() {
+                let value = p.amax();
+                if value > limit {
+                    return Err(SimError::Diverged {
+                        step: self.steps_taken,
+                        vertex,
+                        quantity,
+                        value,
+                        limit,
+                    });
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Total force (N) on every vertex at the current state into `self.force`.

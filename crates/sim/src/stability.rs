@@ -26,6 +26,50 @@ pub struct StabilityBound {
     pub estimated_step: f64,
     /// The free vertex with the highest Gershgorin frequency (the stiffest place).
     pub stiffest_vertex: usize,
+    /// Gershgorin's upper bound on ω²_max, the largest eigenvalue of M⁻¹K (1/s²).
+    pub omega_squared_bound: f64,
+    /// The power-iteration estimate of ω²_max (1/s²), ≤ `omega_squared_bound`.
+    pub omega_squared_estimate: f64,
+}
+
+/// Forward Euler's automatic substeps keep the fastest mode's energy growth under this fraction per
+/// frame.
+pub const FORWARD_EULER_GROWTH_PER_FRAME: f64 = 0.01;
+/// Forward Euler is refused (unless forced) when the fastest mode's amplitude would more than
+/// double each frame: that run is exploding, not merely inaccurate.
+pub const FORWARD_EULER_REFUSED_GROWTH_PER_FRAME: f64 = 1.0;
+
+impl StabilityBound {
+    /// The (safe, estimated) largest substep (s) of `integrator` for frames of `frame_step` seconds.
+    ///
+    /// Symplectic Euler: the bounds above. Forward Euler has no stable step for an undamped spring
+    /// (its amplification √(1 + h²ω²) exceeds 1 at every h); over a frame of length H the fastest
+    /// mode grows by exp(H h ω² / 2), so its "safe" step keeps that growth under
+    /// [`FORWARD_EULER_GROWTH_PER_FRAME`] and its refusal limit is growth beyond
+    /// [`FORWARD_EULER_REFUSED_GROWTH_PER_FRAME`]. Damping is ignored there (conservative).
+    pub fn for_integrator(&self, integrator: crate::Integrator, frame_step: f64) -> (f64, f64) {
+        match integrator {
+            crate::Integrator::ExplicitEuler => {
+                let step = |growth: f64, omega_squared: f64| {
+                    if omega_squared > 0.0 {
+                        2.0 * growth.ln_1p() / (frame_step * omega_squared)
+                    } else {
+                        f64::INFINITY
+                    }
+                };
+                (
+                    step(FORWARD_EULER_GROWTH_PER_FRAME, self.omega_squared_bound)
+                        .min(self.safe_step),
+                    step(
+                        FORWARD_EULER_REFUSED_GROWTH_PER_FRAME,
+                        self.omega_squared_estimate,
+                    )
+                    .min(self.estimated_step),
+                )
+            }
+            _ => (self.safe_step, self.estimated_step),
+        }
+    }
 }
 
 /// Power-iteration steps: enough to bring the Rayleigh quotient within a few per cent of the top
@@ -78,8 +122,10 @@ pub fn stability_bound<const D: usize>(scene: &Scene<D>) -> StabilityBound {
     let mut safe_step = f64::INFINITY;
     let mut stiffest_vertex = 0;
     let mut gamma_max: f64 = 0.0;
+    let mut omega_squared_bound: f64 = 0.0;
     for v in (0..n).filter(|&v| free(v)) {
         let omega_squared = 2.0 * stiffness_sum[v] / masses[v] + attractor;
+        omega_squared_bound = omega_squared_bound.max(omega_squared);
         let gamma = gamma_at(v);
         gamma_max = gamma_max.max(gamma);
         let h = step_for(omega_squared, gamma);
@@ -149,6 +195,8 @@ pub fn stability_bound<const D: usize>(scene: &Scene<D>) -> StabilityBound {
         safe_step,
         estimated_step,
         stiffest_vertex,
+        omega_squared_bound,
+        omega_squared_estimate: lambda.min(omega_squared_bound),
     }
 }
 

@@ -1,0 +1,174 @@
+//! Legacy VTK output (ParaView, VisIt), written with `vtkio`.
+//!
+//! `vtkio` 0.7.0-rc2 fits: it builds a legacy `UNSTRUCTURED_GRID` from an owned model and writes it as
+//! ASCII through `AsciiWriter`, which takes any `std::fmt::Write`. A small adapter forwards that to the
+//! caller's `std::io::Write` (keeping the underlying I/O error, which `fmt::Write` cannot carry), so the
+//! file is streamed, not assembled in a `String`. Points are stored as `f64` (`POINTS n double`) and
+//! `vtkio` prints them with Rust's `Display`, the shortest digits that read back to the same `f64`.
+//! The file declares version 4.2, whose `CELLS n size` layout every VTK since 5 reads; `vtkio` would
+//! switch to the `OFFSETS`/`CONNECTIVITY` layout of version 5.1, which needs VTK 9. The cost of going
+//! through `vtkio` is one owned copy of the frame (coordinates and cell lists) per write; the model
+//! is dropped when the write returns.
+//!
+//! `vtkio` writes each array (all points, all cell lists) on one line; VTK reads legacy data as white-
+//! space-separated tokens, so line length does not matter.
+
+use std::io::Write;
+
+use vtkio::model::{
+    Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers,
+    Vtk,
+};
+use vtkio::writer::{AsciiWriter, WriteVtk};
+
+use super::{xyz, Frame};
+
+/// Write a frame as a legacy ASCII VTK unstructured grid (`# vtk DataFile Version 4.2`, title
+/// `hooke`), which ParaView opens directly.
+///
+/// Points: every position, 2D frames with z = 0, as `double` with shortest round-trip digits. Cells:
+/// the tetrahedra (VTK type 10) if there are any, otherwise the triangles (type 5); then the lines
+/// (type 3); a frame with none of these gets one vertex cell (type 1) per point so that the points
+/// are visible. No point or cell data.
+///
+/// # Errors
+/// An error of kind [`std::io::ErrorKind::InvalidInput`] before anything is written if an index is out
+/// of range, a coordinate is not finite or the frame has more than `u32::MAX` cells; the errors of
+/// `out`; or, if `vtkio` itself fails, an error of kind [`std::io::ErrorKind::Other`] with its message.
+pub fn write_vtk<const D: usize>(frame: &Frame<D>, out: &mut impl Write) -> std::io::Result<()> {
+    frame.check()?;
+    let too_many = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the frame has more cells than a legacy VTK file can count (u32)",
+        )
+    };
+    let points: Vec<f64> = frame.positions.iter().flat_map(xyz).collect();
+    let mut vertices: Vec<u32> = Vec::new();
+    let mut types: Vec<CellType> = Vec::new();
+    if !frame.tetrahedra.is_empty() {
+        vertices.reserve(5 * frame.tetrahedra.len());
+        for t in frame.tetrahedra {
+            vertices.push(4);
+            vertices.extend_from_slice(t);
+        }
+        types.resize(frame.tetrahedra.len(), CellType::Tetra);
+    } else {
+        vertices.reserve(4 * frame.triangles.len());
+        for t in frame.triangles {
+            vertices.push(3);
+            vertices.extend_from_slice(t);
+        }
+        types.resize(frame.triangles.len(), CellType::Triangle);
+    }
+    for l in frame.lines {
+        vertices.push(2);
+        vertices.extend_from_slice(l);
+        types.push(CellType::Line);
+    }
+    if types.is_empty() {
+        for i in 0..frame.positions.len() {
+            vertices.push(1);
+            // The frame check bounds the count by the indices' u32 range only for cells; guard here.
+            vertices.push(u32::try_from(i).map_err(|_| too_many())?);
+            types.push(CellType::Vertex);
+        }
+    }
+    let num_cells = u32::try_from(types.len()).map_err(|_| too_many())?;
+    // The legacy header's `size` (cells + their vertices) must fit too.
+    u32::try_from(vertices.len()).map_err(|_| too_many())?;
+    let vtk = Vtk {
+        version: Version::new_legacy(4, 2),
+        title: "hooke".to_string(),
+        byte_order: ByteOrder::BigEndian,
+        file_path: None,
+        data: DataSet::inline(UnstructuredGridPiece {
+            points: points.into(),
+            cells: Cells {
+                cell_verts: VertexNumbers::Legacy {
+                    num_cells,
+                    vertices,
+                },
+                types,
+            },
+            data: Attributes::new(),
+        }),
+    };
+    let mut adapter = FmtToIo { out, error: None };
+    let result = AsciiWriter(&mut adapter).write_vtk(vtk).map(|_| ());
+    match (result, adapter.error) {
+        (_, Some(error)) => Err(error),
+        (Ok(()), None) => Ok(()),
+        (Err(error), None) => Err(std::io::Error::other(format!("vtkio: {error}"))),
+    }
+}
+
+/// `std::fmt::Write` over a `std::io::Write`, keeping the first I/O error.
+struct FmtToIo<'a, W: Write> {
+    out: &'a mut W,
+    error: Option<std::io::Error>,
+}
+
+impl<W: Write> std::fmt::Write for FmtToIo<'_, W> {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        if self.error.is_some() {
+            return Err(std::fmt::Error);
+        }
+        self.out.write_all(s.as_bytes()).map_err(|e| {
+            self.error = Some(e);
+            std::fmt::Error
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Vec3;
+
+    #[test]
+    fn tetrahedron_and_line() {
+        let p = [
+            Vec3::zeros(),
+            Vec3::x(),
+            Vec3::y(),
+            Vec3::new(0.1, 0.2, 1.0 / 3.0),
+        ];
+        let frame = Frame {
+            positions: &p,
+            triangles: &[[0, 1, 2]],
+            tetrahedra: &[[0, 1, 2, 3]],
+            lines: &[[0, 3]],
+        };
+        let mut bytes = Vec::new();
+        write_vtk(&frame, &mut bytes).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(
+            text.starts_with("# vtk DataFile Version 4.2\nhooke\nASCII\n"),
+            "{text}"
+        );
+        assert!(text.contains("POINTS 4 double\n"), "{text}");
+        assert!(text.contains("0.3333333333333333"), "{text}");
+        assert!(text.contains("CELLS 2 8\n4 0 1 2 3 2 0 3\n"), "{text}");
+        assert!(text.contains("CELL_TYPES 2\n10\n3\n"), "{text}");
+    }
+
+    #[test]
+    fn io_errors_come_through() {
+        struct Full;
+        impl Write for Full {
+            fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+                Err(std::io::Error::new(
+                    std::io::ErrorKind::StorageFull,
+                    "disk full",
+                ))
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let p = [Vec3::zeros()];
+        let e = write_vtk(&Frame::points(&p), &mut Full).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::StorageFull);
+    }
+}

@@ -1,0 +1,999 @@
+//! The PNG preview of a run's last frame.
+//!
+//! 3D meshes are seen through a fixed oblique orthographic camera (azimuth 35° about the y axis,
+//! elevation 25°, y up in the picture), fitted into the image with their aspect ratio kept.
+//! Triangles are filled back to front (painter's algorithm) with two-sided flat Lambert shading:
+//! the side whose normal (by the triangle's winding) faces the camera is blue, the other side
+//! orange, so that folds read clearly. Without triangles the springs are drawn as lines, darker
+//! when nearer. 2D scenes show their box, springs as lines and particles as discs, y up.
+//! Pinned vertices are red in both.
+//!
+//! The picture is drawn at twice its size and averaged down (anti-aliasing). Text uses the
+//! DejaVu Sans font embedded in the program, so no system font is needed. Non-finite positions
+//! are skipped (with everything that touches them) and counted in the picture's caption.
+
+use std::fs::File;
+use std::path::Path;
+use std::sync::OnceLock;
+
+use nalgebra::{Vector2, Vector3};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::register_font;
+
+use super::{temp_file_beside, OutputError};
+
+/// Default width of the preview, in pixels.
+pub const PREVIEW_WIDTH: u32 = 800;
+/// Default height of the preview, in pixels.
+pub const PREVIEW_HEIGHT: u32 = 600;
+
+/// Largest accepted width or height, in pixels.
+const MAX_SIDE: u32 = 8192;
+/// Supersampling factor: the picture is drawn this many times larger in each direction.
+const SS: u32 = 2;
+/// The font family name the embedded font is registered under.
+const FONT: &str = "sans-serif";
+/// DejaVu Sans (see `assets/fonts/DejaVuSans-LICENSE.txt`).
+static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Camera azimuth about the y axis, in degrees (0 looks along −z).
+const AZIMUTH_DEG: f64 = 35.0;
+/// Camera elevation above the x–z plane, in degrees.
+const ELEVATION_DEG: f64 = 25.0;
+
+// Colours.
+const BACKGROUND: RGBColor = RGBColor(247, 248, 250);
+const TEXT: RGBColor = RGBColor(30, 32, 36);
+const TEXT_DIM: RGBColor = RGBColor(105, 110, 120);
+const WARNING: RGBColor = RGBColor(190, 30, 30);
+/// Cloth colour of the side whose normal faces the camera.
+const FRONT: [f64; 3] = [80.0, 140.0, 215.0];
+/// Cloth colour of the other side.
+const BACK: [f64; 3] = [235.0, 165.0, 90.0];
+const PINNED: RGBColor = RGBColor(220, 30, 30);
+const PINNED_RIM: RGBColor = RGBColor(110, 0, 0);
+const PARTICLE: RGBColor = RGBColor(40, 90, 160);
+const SPRING_2D: RGBColor = RGBColor(120, 135, 160);
+const BOX_EDGE: RGBColor = RGBColor(60, 64, 72);
+
+/// Vertex positions of the frame to draw.
+#[derive(Debug, Clone, Copy)]
+pub enum PreviewPositions<'a> {
+    /// A 2D scene (x right, y up).
+    Two(&'a [Vector2<f64>]),
+    /// A 3D scene (y up).
+    Three(&'a [Vector3<f64>]),
+}
+
+impl PreviewPositions<'_> {
+    /// Number of vertices.
+    fn len(&self) -> usize {
+        match self {
+            PreviewPositions::Two(p) => p.len(),
+            PreviewPositions::Three(p) => p.len(),
+        }
+    }
+}
+
+/// Everything the preview shows. Indices refer to `positions`; out-of-range indices are skipped.
+#[derive(Debug, Clone, Copy)]
+pub struct PreviewInput<'a> {
+    /// Caption, e.g. `"cloth-40 · newton · t = 1.000 s"`.
+    pub title: &'a str,
+    /// Vertex positions, in metres.
+    pub positions: PreviewPositions<'a>,
+    /// Surface triangles (3D: filled and shaded; 2D: filled lightly). May be empty.
+    pub triangles: &'a [[u32; 3]],
+    /// Springs. In 3D they are drawn only when there are no triangles.
+    pub lines: &'a [[u32; 2]],
+    /// Pinned vertices, drawn as red dots.
+    pub pinned: &'a [u32],
+    /// The box of a 2D scene as (min, max) corners; the view is fitted to it. `None` fits the
+    /// view to the particles. Ignored in 3D.
+    pub bounds_2d: Option<([f64; 2], [f64; 2])>,
+}
+
+/// Renders `input` to a [`PREVIEW_WIDTH`] × [`PREVIEW_HEIGHT`] PNG at `path`, atomically.
+///
+/// See [`render_preview_sized`].
+pub fn render_preview(path: &Path, input: &PreviewInput) -> Result<(), OutputError> {
+    render_preview_sized(path, input, PREVIEW_WIDTH, PREVIEW_HEIGHT)
+}
+
+/// Renders `input` to a `width` × `height` PNG at `path`, atomically.
+///
+/// The image is written to a temporary `.png` file in `path`'s directory and renamed onto `path`
+/// when complete; on error nothing is left behind and an existing `path` is untouched. Empty
+/// input, NaN or infinite positions and out-of-range indices do not fail: what cannot be drawn
+/// is skipped. Sides outside 1..=8192 pixels are refused.
+pub fn render_preview_sized(
+    path: &Path,
+    input: &PreviewInput,
+    width: u32,
+    height: u32,
+) -> Result<(), OutputError> {
+    if !(1..=MAX_SIDE).contains(&width) || !(1..=MAX_SIDE).contains(&height) {
+        return Err(OutputError::plot(
+            path,
+            format!("image size {width}×{height} is outside 1..={MAX_SIDE} pixels a side"),
+        ));
+    }
+    let pixels = rasterize(input, width, height).map_err(|m| OutputError::plot(path, m))?;
+    write_png(path, &pixels, width, height)
+}
+
+/// Registers the embedded font once; `false` if it could not be (text is then left out).
+fn font_ready() -> bool {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    *REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok())
+}
+
+/// Encodes `pixels` (RGB, row-major) as a PNG in a temporary file beside `path`, syncs it and
+/// renames it onto `path`.
+fn write_png(path: &Path, pixels: &[u8], width: u32, height: u32) -> Result<(), OutputError> {
+    // The `.png` suffix makes plotters choose the PNG encoder.
+    let tmp = temp_file_beside(path, ".preview-", ".png")?.into_temp_path();
+    {
+        let mut backend = BitMapBackend::new(&tmp, (width, height));
+        backend
+            .blit_bitmap((0, 0), (width, height), pixels)
+            .map_err(|e| OutputError::plot(path, e))?;
+        backend.present().map_err(|e| OutputError::plot(path, e))?;
+    }
+    File::open(&tmp)
+        .and_then(|f| f.sync_all())
+        .map_err(|e| OutputError::io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| OutputError::io(path, e.error))?;
+    Ok(())
+}
+
+/// Draws the picture at `SS` times the size and averages it down to `width` × `height` RGB.
+fn rasterize(input: &PreviewInput, width: u32, height: u32) -> Result<Vec<u8>, String> {
+    let (big_w, big_h) = (width * SS, height * SS);
+    let mut big = vec![0u8; big_w as usize * big_h as usize * 3];
+    {
+        let area = BitMapBackend::with_buffer(&mut big, (big_w, big_h)).into_drawing_area();
+        area.fill(&BACKGROUND).map_err(|e| e.to_string())?;
+        let layout = Layout::new(width, height);
+        let caption = match input.positions {
+            PreviewPositions::Three(p) => draw_3d(&area, &layout, input, p)?,
+            PreviewPositions::Two(p) => draw_2d(&area, &layout, input, p)?,
+        };
+        if font_ready() {
+            draw_caption(&area, &layout, input, &caption)?;
+        }
+        area.present().map_err(|e| e.to_string())?;
+    }
+    Ok(downsample(&big, width, height))
+}
+
+/// Averages each `SS` × `SS` block of `big` into one pixel.
+fn downsample(big: &[u8], width: u32, height: u32) -> Vec<u8> {
+    let (w, h, s) = (width as usize, height as usize, SS as usize);
+    let big_w = w * s;
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        for x in 0..w {
+            for c in 0..3 {
+                let mut sum = 0u32;
+                for dy in 0..s {
+                    let row = (y * s + dy) * big_w;
+                    for dx in 0..s {
+                        sum += u32::from(big[(row + x * s + dx) * 3 + c]);
+                    }
+                }
+                let n = (s * s) as u32;
+                out[(y * w + x) * 3 + c] = ((sum + n / 2) / n) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// Where things go, in supersampled pixels.
+struct Layout {
+    /// Supersampled image size.
+    size: (f64, f64),
+    /// Size unit: one output pixel of an 800 × 600 image, scaled with the image.
+    unit: f64,
+    /// The rectangle the scene is fitted into: (left, top, right, bottom).
+    plot: (f64, f64, f64, f64),
+}
+
+impl Layout {
+    /// The layout of a `width` × `height` output image.
+    fn new(width: u32, height: u32) -> Self {
+        let (w, h) = (f64::from(width * SS), f64::from(height * SS));
+        let unit = (f64::from(width) / 800.0)
+            .min(f64::from(height) / 600.0)
+            .clamp(0.25, 4.0)
+            * f64::from(SS);
+        let margin = 24.0 * unit;
+        let top = 72.0 * unit;
+        let left = margin.min(w / 2.0 - 0.5);
+        let right = (w - margin).max(left + 1.0);
+        let top = top.min(h / 2.0 - 0.5).max(0.0);
+        let bottom = (h - margin).max(top + 1.0);
+        Layout {
+            size: (w, h),
+            unit,
+            plot: (left, top, right, bottom),
+        }
+    }
+}
+
+/// Maps scene coordinates (u right, v up) onto the plot rectangle, keeping the aspect ratio.
+struct Fit {
+    scale: f64,
+    centre: (f64, f64),
+    pixel_centre: (f64, f64),
+}
+
+impl Fit {
+    /// Fits the box `min`..`max` into `layout`'s plot rectangle. A degenerate or non-finite box
+    /// still gives a usable (finite) map.
+    fn new(min: (f64, f64), max: (f64, f64), layout: &Layout) -> Self {
+        let (l, t, r, b) = layout.plot;
+        let (pw, ph) = (r - l, b - t);
+        let extent = |lo: f64, hi: f64| {
+            let e = hi - lo;
+            if e.is_finite() && e > 0.0 {
+                Some(e)
+            } else {
+                None
+            }
+        };
+        let scale = match (extent(min.0, max.0), extent(min.1, max.1)) {
+            (Some(eu), Some(ev)) => (pw / eu).min(ph / ev),
+            (Some(eu), None) => pw / eu,
+            (None, Some(ev)) => ph / ev,
+            (None, None) => pw.min(ph) / 2.0,
+        };
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
+        let mid = |lo: f64, hi: f64| {
+            let m = 0.5 * lo + 0.5 * hi;
+            if m.is_finite() {
+                m
+            } else {
+                0.0
+            }
+        };
+        Fit {
+            scale,
+            centre: (mid(min.0, max.0), mid(min.1, max.1)),
+            pixel_centre: (0.5 * (l + r), 0.5 * (t + b)),
+        }
+    }
+
+    /// Supersampled pixel coordinates of scene point (u, v); y grows downwards.
+    fn map(&self, u: f64, v: f64) -> (f64, f64) {
+        (
+            self.pixel_centre.0 + (u - self.centre.0) * self.scale,
+            self.pixel_centre.1 - (v - self.centre.1) * self.scale,
+        )
+    }
+}
+
+/// Bounding box of the points; `None` if there are none.
+fn bounding_box(points: impl Iterator<Item = (f64, f64)>) -> Option<((f64, f64), (f64, f64))> {
+    points.fold(None, |acc, (u, v)| match acc {
+        None => Some(((u, v), (u, v))),
+        Some((lo, hi)) => Some(((lo.0.min(u), lo.1.min(v)), (hi.0.max(u), hi.1.max(v)))),
+    })
+}
+
+/// Rounds a supersampled pixel coordinate that is known to be moderate.
+fn px(p: (f64, f64)) -> (i32, i32) {
+    (p.0.round() as i32, p.1.round() as i32)
+}
+
+/// Whether `p` lies within `pad` of the image.
+fn near_image(p: (f64, f64), layout: &Layout, pad: f64) -> bool {
+    p.0 >= -pad && p.1 >= -pad && p.0 <= layout.size.0 + pad && p.1 <= layout.size.1 + pad
+}
+
+/// Clips segment `a`–`b` to the image (plus a small border), Liang–Barsky.
+fn clip_segment(a: (f64, f64), b: (f64, f64), layout: &Layout) -> Option<((i32, i32), (i32, i32))> {
+    let pad = 4.0;
+    let (xmin, ymin, xmax, ymax) = (-pad, -pad, layout.size.0 + pad, layout.size.1 + pad);
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-dx, a.0 - xmin),
+        (dx, xmax - a.0),
+        (-dy, a.1 - ymin),
+        (dy, ymax - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if t0.is_nan() || t1.is_nan() || t0 > t1 {
+        return None;
+    }
+    let at = |t: f64| (a.0 + t * dx, a.1 + t * dy);
+    let (p, q) = (at(t0), at(t1));
+    [p.0, p.1, q.0, q.1]
+        .iter()
+        .all(|x| x.is_finite())
+        .then(|| (px(p), px(q)))
+}
+
+/// Scales an RGB colour by `f` (0 = black, 1 = unchanged).
+fn shade(rgb: [f64; 3], f: f64) -> RGBColor {
+    let c = |x: f64| (x * f).round().clamp(0.0, 255.0) as u8;
+    RGBColor(c(rgb[0]), c(rgb[1]), c(rgb[2]))
+}
+
+/// Linear blend of two colours, `t` = 0 gives `a`.
+fn mix(a: RGBColor, b: RGBColor, t: f64) -> RGBColor {
+    let c = |x: u8, y: u8| (f64::from(x) + (f64::from(y) - f64::from(x)) * t).round() as u8;
+    RGBColor(c(a.0, b.0), c(a.1, b.1), c(a.2, b.2))
+}
+
+/// Draws plotters elements, turning errors into messages.
+macro_rules! draw {
+    ($area:expr, $element:expr) => {
+        $area.draw(&$element).map_err(|e| e.to_string())?
+    };
+}
+
+/// The fixed oblique orthographic camera.
+struct Camera {
+    /// Unit vector pointing right in the picture.
+    right: Vector3<f64>,
+    /// Unit vector pointing up in the picture.
+    up: Vector3<f64>,
+    /// Unit vector from the scene towards the viewer; larger `p · toward` is nearer.
+    toward: Vector3<f64>,
+    /// Unit direction towards the light.
+    light: Vector3<f64>,
+}
+
+impl Camera {
+    /// The camera at [`AZIMUTH_DEG`], [`ELEVATION_DEG`].
+    fn new() -> Self {
+        let (a, e) = (AZIMUTH_DEG.to_radians(), ELEVATION_DEG.to_radians());
+        let toward = Vector3::new(e.cos() * a.sin(), e.sin(), e.cos() * a.cos());
+        let right = Vector3::new(a.cos(), 0.0, -a.sin());
+        let up = toward.cross(&right);
+        // A light above, slightly left of and in front of the viewer.
+        let light = (toward + up * 0.5 + right * 0.3).normalize();
+        Camera {
+            right,
+            up,
+            toward,
+            light,
+        }
+    }
+
+    /// (u, v, depth) of `p`, or `None` if not finite.
+    fn project(&self, p: &Vector3<f64>) -> Option<(f64, f64, f64)> {
+        let q = (p.dot(&self.right), p.dot(&self.up), p.dot(&self.toward));
+        (q.0.is_finite() && q.1.is_finite() && q.2.is_finite()).then_some(q)
+    }
+}
+
+/// A triangle ready to paint.
+struct Face {
+    depth: f64,
+    corners: [(f64, f64); 3],
+    fill: RGBColor,
+    edge: RGBColor,
+}
+
+/// A spring ready to draw: (depth, end, end).
+type Segment = (f64, (f64, f64), (f64, f64));
+
+/// What the caption reports besides the title.
+struct Caption {
+    detail: String,
+    skipped: usize,
+    axes: Option<Camera>,
+}
+
+/// `i` as an index into `n` vertices, or `None` if out of range.
+fn index(i: u32, n: usize) -> Option<usize> {
+    let i = i as usize;
+    (i < n).then_some(i)
+}
+
+/// Draws a 3D frame: shaded triangles, else springs, else dots; then the pinned vertices.
+fn draw_3d(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    input: &PreviewInput,
+    positions: &[Vector3<f64>],
+) -> Result<Caption, String> {
+    let cam = Camera::new();
+    let n = positions.len();
+    let projected: Vec<Option<(f64, f64, f64)>> =
+        positions.iter().map(|p| cam.project(p)).collect();
+    let skipped = projected.iter().filter(|p| p.is_none()).count();
+    let (min, max) = bounding_box(projected.iter().flatten().map(|&(u, v, _)| (u, v)))
+        .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
+    let fit = Fit::new(min, max, layout);
+    let screen: Vec<Option<((f64, f64), f64)>> = projected
+        .iter()
+        .map(|p| p.map(|(u, v, d)| (fit.map(u, v), d)))
+        .collect();
+    let at = |i: u32| index(i, n).and_then(|i| screen[i]);
+
+    if !input.triangles.is_empty() {
+        let mut faces = Vec::with_capacity(input.triangles.len());
+        let mut edge_length = 0.0;
+        for tri in input.triangles {
+            let (Some(a), Some(b), Some(c)) = (at(tri[0]), at(tri[1]), at(tri[2])) else {
+                continue;
+            };
+            // All three indices are valid here.
+            let [pa, pb, pc] = tri.map(|i| positions[i as usize]);
+            let normal = (pb - pa).cross(&(pc - pa));
+            let len = normal.norm();
+            let (lambert, front) = if len > 0.0 && len.is_finite() {
+                let normal = normal / len;
+                (normal.dot(&cam.light).abs(), normal.dot(&cam.toward) >= 0.0)
+            } else {
+                (0.5, true)
+            };
+            let base = if front { FRONT } else { BACK };
+            let f = 0.45 + 0.6 * lambert;
+            let corners = [a.0, b.0, c.0];
+            edge_length += dist(corners[0], corners[1])
+                + dist(corners[1], corners[2])
+                + dist(corners[2], corners[0]);
+            faces.push(Face {
+                depth: (a.1 + b.1 + c.1) / 3.0,
+                corners,
+                fill: shade(base, f),
+                edge: shade(base, f * 0.8),
+            });
+        }
+        faces.sort_by(|x, y| x.depth.total_cmp(&y.depth));
+        // Outline the triangles only when they are big enough for the lines not to swamp them.
+        let mean_edge = edge_length / (3.0 * faces.len().max(1) as f64) / layout.unit;
+        let outline = mean_edge >= 6.0;
+        let edge_width = (layout.unit * 0.5).round().max(1.0) as u32;
+        for face in &faces {
+            let pts: Vec<(i32, i32)> = face.corners.iter().map(|&p| px(p)).collect();
+            draw!(area, Polygon::new(pts.clone(), face.fill.filled()));
+            let mut ring = pts;
+            ring.push(ring[0]);
+            // Without outlines, a thin stroke in the fill colour closes rasterisation cracks.
+            let (colour, width) = if outline {
+                (face.edge, edge_width)
+            } else {
+                (face.fill, 1)
+            };
+            draw!(area, PathElement::new(ring, colour.stroke_width(width)));
+        }
+    } else if !input.lines.is_empty() {
+        let mut segments: Vec<Segment> = input
+            .lines
+            .iter()
+            .filter_map(|l| {
+                let (a, b) = (at(l[0])?, at(l[1])?);
+                Some((0.5 * (a.1 + b.1), a.0, b.0))
+            })
+            .collect();
+        segments.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let (near, far) = (RGBColor(20, 45, 90), RGBColor(165, 185, 210));
+        let (dmin, dmax) = segments
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+                (lo.min(s.0), hi.max(s.0))
+            });
+        let width = if segments.len() > 5000 {
+            SS
+        } else {
+            (1.5 * layout.unit).round().max(1.0) as u32
+        };
+        for (depth, a, b) in segments {
+            let t = if dmax > dmin {
+                (dmax - depth) / (dmax - dmin)
+            } else {
+                0.0
+            };
+            if let Some((a, b)) = clip_segment(a, b, layout) {
+                let colour = mix(near, far, t.clamp(0.0, 1.0) * 0.85);
+                draw!(
+                    area,
+                    PathElement::new(vec![a, b], colour.stroke_width(width))
+                );
+            }
+        }
+    } else {
+        // Only vertices: small dots.
+        let r = (1.5 * layout.unit).round().max(1.0) as i32;
+        for &(p, _) in screen.iter().flatten() {
+            draw!(area, Circle::new(px(p), r, PARTICLE.filled()));
+        }
+    }
+
+    draw_pinned(area, layout, input.pinned, 4.5 * layout.unit, |i| {
+        at(i).map(|s| s.0)
+    })?;
+    let mut detail = format!(
+        "3D · {} vertices · {} triangles · {} springs · {} pinned",
+        n,
+        input.triangles.len(),
+        input.lines.len(),
+        input.pinned.len()
+    );
+    let finite = positions.iter().filter(|p| p.iter().all(|x| x.is_finite()));
+    if let Some((lo, hi)) = finite.fold(None, |acc: Option<(Vector3<f64>, Vector3<f64>)>, p| {
+        Some(acc.map_or((*p, *p), |(lo, hi)| (lo.inf(p), hi.sup(p))))
+    }) {
+        let size = hi - lo;
+        detail.push_str(&format!(
+            " · size {} × {} × {} m",
+            format_length(size.x),
+            format_length(size.y),
+            format_length(size.z)
+        ));
+    }
+    Ok(Caption {
+        detail,
+        skipped,
+        axes: Some(cam),
+    })
+}
+
+/// A length for the caption: fixed-point when moderate, scientific otherwise.
+fn format_length(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// Distance between two pixel positions.
+fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
+    (a.0 - b.0).hypot(a.1 - b.1)
+}
+
+/// Red dots of `radius` (supersampled pixels) on the pinned vertices.
+fn draw_pinned(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    pinned: &[u32],
+    radius: f64,
+    at: impl Fn(u32) -> Option<(f64, f64)>,
+) -> Result<(), String> {
+    let r = radius.round().max(2.0) as i32;
+    let rim = (layout.unit * 0.8).round().max(1.0) as i32;
+    for &i in pinned {
+        let Some(p) = at(i) else { continue };
+        if !near_image(p, layout, f64::from(r)) {
+            continue;
+        }
+        draw!(area, Circle::new(px(p), r, PINNED_RIM.filled()));
+        draw!(area, Circle::new(px(p), (r - rim).max(1), PINNED.filled()));
+    }
+    Ok(())
+}
+
+/// Draws a 2D frame: the box, triangles, springs, particles and pinned particles.
+fn draw_2d(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    input: &PreviewInput,
+    positions: &[Vector2<f64>],
+) -> Result<Caption, String> {
+    let n = positions.len();
+    let finite = |p: &Vector2<f64>| p.x.is_finite() && p.y.is_finite();
+    let skipped = positions.iter().filter(|p| !finite(p)).count();
+    let bounds = input.bounds_2d.filter(|(lo, hi)| {
+        lo.iter().chain(hi).all(|x| x.is_finite()) && hi[0] > lo[0] && hi[1] > lo[1]
+    });
+    let (min, max) = match bounds {
+        Some((lo, hi)) => ((lo[0], lo[1]), (hi[0], hi[1])),
+        None => {
+            let (lo, hi) = bounding_box(positions.iter().filter(|p| finite(p)).map(|p| (p.x, p.y)))
+                .unwrap_or(((0.0, 0.0), (1.0, 1.0)));
+            // Leave room for the discs around the outermost particles.
+            let pad = 0.05 * (hi.0 - lo.0).max(hi.1 - lo.1);
+            let pad = if pad.is_finite() && pad > 0.0 {
+                pad
+            } else {
+                0.5
+            };
+            ((lo.0 - pad, lo.1 - pad), (hi.0 + pad, hi.1 + pad))
+        }
+    };
+    let fit = Fit::new(min, max, layout);
+    let screen: Vec<Option<(f64, f64)>> = positions
+        .iter()
+        .map(|p| finite(p).then(|| fit.map(p.x, p.y)))
+        .collect();
+    let at = |i: u32| index(i, n).and_then(|i| screen[i]);
+
+    if bounds.is_some() {
+        let (a, b) = (px(fit.map(min.0, max.1)), px(fit.map(max.0, min.1)));
+        draw!(area, Rectangle::new([a, b], WHITE.filled()));
+        let w = (1.5 * layout.unit).round().max(1.0) as u32;
+        draw!(area, Rectangle::new([a, b], BOX_EDGE.stroke_width(w)));
+    }
+
+    let far = 2.0 * layout.size.0.max(layout.size.1);
+    for tri in input.triangles {
+        let (Some(a), Some(b), Some(c)) = (at(tri[0]), at(tri[1]), at(tri[2])) else {
+            continue;
+        };
+        if ![a, b, c].iter().all(|&p| near_image(p, layout, far)) {
+            continue;
+        }
+        let pts = vec![px(a), px(b), px(c)];
+        draw!(area, Polygon::new(pts, RGBColor(205, 220, 240).filled()));
+    }
+
+    let spring_width = (1.3 * layout.unit).round().max(1.0) as u32;
+    for l in input.lines {
+        let (Some(a), Some(b)) = (at(l[0]), at(l[1])) else {
+            continue;
+        };
+        if let Some((a, b)) = clip_segment(a, b, layout) {
+            draw!(
+                area,
+                PathElement::new(vec![a, b], SPRING_2D.stroke_width(spring_width))
+            );
+        }
+    }
+
+    // Disc radius from the typical spacing of the particles, within 1.5..6 output pixels.
+    let (l, t, r, b) = layout.plot;
+    let spacing = ((r - l) * (b - t) / (n.max(1) as f64)).sqrt();
+    let radius = (0.3 * spacing).clamp(1.5 * layout.unit, 6.0 * layout.unit);
+    let radius_px = radius.round().max(1.0) as i32;
+    for &p in screen.iter().flatten() {
+        if near_image(p, layout, radius) {
+            draw!(area, Circle::new(px(p), radius_px, PARTICLE.filled()));
+        }
+    }
+    let pinned_radius = (1.2 * radius).max(3.0 * layout.unit);
+    draw_pinned(area, layout, input.pinned, pinned_radius, at)?;
+
+    let detail = format!(
+        "2D · {} particles · {} springs · {} pinned",
+        n,
+        input.lines.len(),
+        input.pinned.len()
+    );
+    Ok(Caption {
+        detail,
+        skipped,
+        axes: None,
+    })
+}
+
+/// Title, detail line, warning about skipped vertices and (3D) the axis hint.
+fn draw_caption(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    input: &PreviewInput,
+    caption: &Caption,
+) -> Result<(), String> {
+    let u = layout.unit;
+    let x = (16.0 * u).round() as i32;
+    let title = (FONT, 21.0 * u).into_font().color(&TEXT);
+    draw!(
+        area,
+        Text::new(input.title.to_string(), (x, (12.0 * u) as i32), title)
+    );
+    let small = (FONT, 13.0 * u).into_font();
+    let mut detail = caption.detail.clone();
+    if caption.skipped > 0 {
+        detail.push_str(" · ");
+    }
+    draw!(
+        area,
+        Text::new(
+            detail.clone(),
+            (x, (42.0 * u) as i32),
+            small.clone().color(&TEXT_DIM)
+        )
+    );
+    if caption.skipped > 0 {
+        let offset = area
+            .estimate_text_size(&detail, &small.clone().color(&TEXT_DIM))
+            .map_err(|e| e.to_string())?
+            .0 as i32;
+        let warning = format!(
+            "{} {} not finite (skipped)",
+            caption.skipped,
+            if caption.skipped == 1 {
+                "vertex"
+            } else {
+                "vertices"
+            }
+        );
+        draw!(
+            area,
+            Text::new(
+                warning,
+                (x + offset, (42.0 * u) as i32),
+                small.clone().color(&WARNING)
+            )
+        );
+    }
+    if input.positions.len() > 0 {
+        if let Some(cam) = &caption.axes {
+            draw_axes(area, layout, cam)?;
+        }
+    }
+    Ok(())
+}
+
+/// A small x/y/z triad in the lower left corner showing the camera's orientation.
+fn draw_axes(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    cam: &Camera,
+) -> Result<(), String> {
+    let u = layout.unit;
+    let origin = (34.0 * u, layout.size.1 - 34.0 * u);
+    let length = 24.0 * u;
+    let width = (1.5 * u).round().max(1.0) as u32;
+    let font = (FONT, 12.0 * u).into_font();
+    let axes = [
+        ("x", Vector3::x(), RGBColor(200, 50, 50)),
+        ("y", Vector3::y(), RGBColor(40, 150, 60)),
+        ("z", Vector3::z(), RGBColor(50, 90, 210)),
+    ];
+    for (name, axis, colour) in axes {
+        let d = (axis.dot(&cam.right), -axis.dot(&cam.up));
+        let tip = (origin.0 + d.0 * length, origin.1 + d.1 * length);
+        draw!(
+            area,
+            PathElement::new(vec![px(origin), px(tip)], colour.stroke_width(width))
+        );
+        let label = (
+            origin.0 + d.0 * (length + 9.0 * u) - 3.5 * u,
+            origin.1 + d.1 * (length + 9.0 * u) - 6.0 * u,
+        );
+        draw!(
+            area,
+            Text::new(name.to_string(), px(label), font.clone().color(&colour))
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Width and height from a PNG's IHDR chunk, after checking the signature.
+    fn png_size(path: &Path) -> (u32, u32) {
+        let bytes = std::fs::read(path).unwrap();
+        assert!(bytes.len() > 24, "PNG too short: {} bytes", bytes.len());
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "not a PNG signature");
+        assert_eq!(&bytes[12..16], b"IHDR");
+        let be = |o: usize| u32::from_be_bytes(bytes[o..o + 4].try_into().unwrap());
+        (be(16), be(20))
+    }
+
+    type Mesh = (Vec<Vector3<f64>>, Vec<[u32; 3]>, Vec<[u32; 2]>);
+
+    /// An N × N cloth hanging from two pinned corners, roughly as cloth-N looks after a second.
+    fn hanging_cloth(n: usize) -> Mesh {
+        let mut positions = Vec::with_capacity(n * n);
+        for i in 0..n {
+            for j in 0..n {
+                let s = i as f64 / (n - 1) as f64; // distance down from the pinned edge
+                let t = j as f64 / (n - 1) as f64; // across
+                let across = t - 0.5;
+                // The free corners fall and swing in; the middle sags.
+                let z = 0.5 + across * (1.0 - 0.35 * s.powf(0.7));
+                let y =
+                    -0.9 * s - 0.25 * (1.0 - (2.0 * across).powi(2)) * (1.0 - (1.0 - s).powi(3));
+                let x = 0.18 * s * (std::f64::consts::PI * t).sin() + 0.05 * (5.0 * s).sin();
+                positions.push(Vector3::new(x, y, z));
+            }
+        }
+        let id = |i: usize, j: usize| (i * n + j) as u32;
+        let mut triangles = Vec::new();
+        let mut lines = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                if i + 1 < n {
+                    lines.push([id(i, j), id(i + 1, j)]);
+                }
+                if j + 1 < n {
+                    lines.push([id(i, j), id(i, j + 1)]);
+                }
+                if i + 1 < n && j + 1 < n {
+                    triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                    triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+                }
+            }
+        }
+        (positions, triangles, lines)
+    }
+
+    fn cloth_input<'a>(
+        positions: &'a [Vector3<f64>],
+        triangles: &'a [[u32; 3]],
+        lines: &'a [[u32; 2]],
+        pinned: &'a [u32],
+    ) -> PreviewInput<'a> {
+        PreviewInput {
+            title: "cloth-20 · newton · t = 1.000 s",
+            positions: PreviewPositions::Three(positions),
+            triangles,
+            lines,
+            pinned,
+            bounds_2d: None,
+        }
+    }
+
+    #[test]
+    fn font_registers() {
+        assert!(font_ready());
+    }
+
+    #[test]
+    fn renders_3d_cloth() {
+        let dir = tempfile::tempdir().unwrap();
+        let (p, t, l) = hanging_cloth(20);
+        let pinned = [0, 19];
+        let path = dir.path().join("preview.png");
+        render_preview(&path, &cloth_input(&p, &t, &l, &pinned)).unwrap();
+        assert_eq!(png_size(&path), (PREVIEW_WIDTH, PREVIEW_HEIGHT));
+        // Only the final file remains.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+
+        // Springs only, at another size.
+        let path = dir.path().join("springs.png");
+        render_preview_sized(&path, &cloth_input(&p, &[], &l, &pinned), 640, 360).unwrap();
+        assert_eq!(png_size(&path), (640, 360));
+    }
+
+    #[test]
+    fn renders_2d_particles() {
+        let dir = tempfile::tempdir().unwrap();
+        let positions: Vec<Vector2<f64>> = (0..30)
+            .map(|k| {
+                let a = k as f64 * 0.7;
+                Vector2::new(
+                    0.5 + 0.3 * a.cos() * (k as f64 / 30.0),
+                    0.2 + 0.02 * k as f64,
+                )
+            })
+            .collect();
+        let lines: Vec<[u32; 2]> = (0..29).map(|k| [k, k + 1]).collect();
+        let input = PreviewInput {
+            title: "seed-2d · symplectic-euler · t = 0.500 s",
+            positions: PreviewPositions::Two(&positions),
+            triangles: &[],
+            lines: &lines,
+            pinned: &[0, 7],
+            bounds_2d: Some(([0.0, 0.0], [1.0, 1.0])),
+        };
+        let path = dir.path().join("seed.png");
+        render_preview(&path, &input).unwrap();
+        assert_eq!(png_size(&path), (800, 600));
+
+        let unboxed = PreviewInput {
+            bounds_2d: None,
+            ..input
+        };
+        render_preview_sized(&path, &unboxed, 300, 500).unwrap();
+        assert_eq!(png_size(&path), (300, 500));
+    }
+
+    #[test]
+    fn survives_bad_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.png");
+        let (mut p, t, l) = hanging_cloth(6);
+        p[3] = Vector3::new(f64::NAN, 0.0, 0.0);
+        p[8] = Vector3::new(f64::INFINITY, 1.0, 0.0);
+        p[9] = Vector3::new(1e300, -1e300, 1e300);
+        let mut t = t;
+        t.push([0, 1, 1000]); // out of range
+        let pinned = [0, 3, 5, 77];
+        for input in [
+            cloth_input(&p, &t, &l, &pinned),
+            cloth_input(&p, &[], &l, &pinned),
+            cloth_input(&p, &[], &[], &pinned),
+            cloth_input(&[], &[], &[], &[]),
+            cloth_input(&[], &t, &l, &pinned),
+        ] {
+            render_preview_sized(&path, &input, 200, 150).unwrap();
+            assert_eq!(png_size(&path), (200, 150));
+        }
+        // All vertices at one point: a degenerate bounding box.
+        let same = vec![Vector3::new(1.0, 2.0, 3.0); 4];
+        render_preview(
+            &path,
+            &cloth_input(&same, &[[0, 1, 2], [1, 2, 3]], &[], &[0]),
+        )
+        .unwrap();
+
+        let p2 = [
+            Vector2::new(f64::NAN, 0.5),
+            Vector2::new(0.5, 0.5),
+            Vector2::new(1e12, -1e12),
+            Vector2::new(0.5, f64::NEG_INFINITY),
+        ];
+        for bounds in [
+            None,
+            Some(([0.0, 0.0], [1.0, 1.0])),
+            Some(([1.0, 0.0], [1.0, 1.0])),
+            Some(([f64::NAN, 0.0], [1.0, 1.0])),
+        ] {
+            for pts in [&p2[..], &p2[1..2], &[]] {
+                let input = PreviewInput {
+                    title: "",
+                    positions: PreviewPositions::Two(pts),
+                    triangles: &[[0, 1, 2], [1, 2, 3]],
+                    lines: &[[0, 1], [1, 2], [2, 3], [1, 9]],
+                    pinned: &[1, 2, 42],
+                    bounds_2d: bounds,
+                };
+                render_preview_sized(&path, &input, 120, 90).unwrap();
+                assert_eq!(png_size(&path), (120, 90));
+            }
+        }
+        // Tiny images still work.
+        render_preview_sized(&path, &cloth_input(&p, &t, &l, &pinned), 1, 1).unwrap();
+        assert_eq!(png_size(&path), (1, 1));
+    }
+
+    #[test]
+    fn failed_write_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (p, t, l) = hanging_cloth(5);
+        let input = cloth_input(&p, &t, &l, &[0, 4]);
+
+        // Destination is a directory: the final rename fails, the temporary file is removed.
+        let path = dir.path().join("preview.png");
+        std::fs::create_dir(&path).unwrap();
+        let err = render_preview(&path, &input).unwrap_err();
+        assert!(err.to_string().contains("preview.png"), "{err}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(path.is_dir());
+
+        // Missing directory.
+        let missing = dir.path().join("nope").join("preview.png");
+        assert!(matches!(
+            render_preview(&missing, &input),
+            Err(OutputError::Io { .. })
+        ));
+        assert!(!missing.exists());
+
+        // Refused size: nothing written.
+        let path = dir.path().join("huge.png");
+        let err = render_preview_sized(&path, &input, 0, 600).unwrap_err();
+        assert!(matches!(err, OutputError::Plot { .. }));
+        assert!(err.to_string().contains("huge.png"), "{err}");
+        assert!(!path.exists());
+    }
+
+    #[test]
+    fn overwrites_existing_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("preview.png");
+        std::fs::write(&path, b"old").unwrap();
+        let (p, t, l) = hanging_cloth(4);
+        render_preview(&path, &cloth_input(&p, &t, &l, &[0, 3])).unwrap();
+        assert_eq!(png_size(&path), (800, 600));
+    }
+}

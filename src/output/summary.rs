@@ -1,0 +1,217 @@
+//! `DIR/summary.json`: what a run was and how each step went.
+//!
+//! Units are SI throughout: energies in joules (J), times in seconds (s); `max_stretch` is
+//! dimensionless. JSON has no NaN or infinity: `serde_json` writes a non-finite number as `null`,
+//! and [`read_summary`] reads a `null` energy, stretch or time back as NaN (a `null`
+//! `solver_residual` reads back as `None`, whatever it was).
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::Path;
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+use super::{temp_file_beside, OutputError};
+
+/// The whole run: its setup and one record per recorded step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// Scene name, e.g. `cloth-40` or `seed-2d`.
+    pub scene: String,
+    /// Integrator name, e.g. `newton` or `symplectic-euler`.
+    pub integrator: String,
+    /// Spatial dimension: 2 or 3.
+    pub dimension: usize,
+    /// Number of vertices (point masses).
+    pub vertices: usize,
+    /// Number of springs.
+    pub springs: usize,
+    /// Time step h of one step, in seconds (s); one step may be split into `substeps`.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub time_step: f64,
+    /// Number of substeps per step (1 when steps are not split).
+    pub substeps: usize,
+    /// One record per step, in order.
+    pub steps: Vec<StepRecord>,
+}
+
+/// The state after one step and what the step cost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepRecord {
+    /// Step number, counted from 1 for the first step taken (0 may record the initial state).
+    pub step: usize,
+    /// Simulated time at the end of the step, in seconds (s).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub time: f64,
+    /// Kinetic energy ½ Σ mᵢ |vᵢ|², in joules (J).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub kinetic_energy: f64,
+    /// Potential energy (springs plus conservative external forces such as gravity), in joules (J).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub potential_energy: f64,
+    /// Kinetic plus potential energy, in joules (J).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub total_energy: f64,
+    /// Largest spring stretch ratio maxₛ |r|/l (current over rest length), dimensionless:
+    /// 1 at rest, above 1 when stretched.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub max_stretch: f64,
+    /// Iterations of the step's solver (Newton, conjugate gradient, projective dynamics…), summed
+    /// over substeps; `None` for explicit integrators, which solve nothing.
+    pub solver_iterations: Option<usize>,
+    /// The solver's final residual as it reports it (its own norm and scaling); `None` for
+    /// explicit integrators.
+    pub solver_residual: Option<f64>,
+    /// Wall-clock time spent on the step, in seconds (s).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub wall_time_s: f64,
+}
+
+/// Reads a number that `serde_json` may have written as `null` (NaN or ±infinity) as NaN.
+fn f64_or_nan<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(deserializer)?.unwrap_or(f64::NAN))
+}
+
+/// Writes `summary` to `path` as pretty-printed JSON, atomically.
+///
+/// The JSON goes to a temporary file in `path`'s directory, which is flushed, synced and then
+/// renamed onto `path`; on any error the temporary file is removed and `path` is left as it was.
+/// Non-finite numbers are written as `null` (see the [module documentation](self)).
+pub fn write_summary(path: &Path, summary: &RunSummary) -> Result<(), OutputError> {
+    let tmp = temp_file_beside(path, ".summary-", ".json.tmp")?;
+    {
+        let mut writer = BufWriter::new(tmp.as_file());
+        serde_json::to_writer_pretty(&mut writer, summary).map_err(|source| OutputError::Json {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        writer
+            .write_all(b"\n")
+            .and_then(|()| writer.flush())
+            .map_err(|e| OutputError::io(path, e))?;
+    }
+    tmp.as_file()
+        .sync_all()
+        .map_err(|e| OutputError::io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| OutputError::io(path, e.error))?;
+    Ok(())
+}
+
+/// Reads a summary written by [`write_summary`]; `null` numbers read back as NaN.
+#[allow(dead_code)] // Part of the module's API for tests and tools; the binary only writes.
+pub fn read_summary(path: &Path) -> Result<RunSummary, OutputError> {
+    let file = File::open(path).map_err(|e| OutputError::io(path, e))?;
+    serde_json::from_reader(BufReader::new(file)).map_err(|source| OutputError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> RunSummary {
+        RunSummary {
+            scene: "cloth-10".into(),
+            integrator: "newton".into(),
+            dimension: 3,
+            vertices: 100,
+            springs: 502,
+            time_step: 1.0 / 30.0,
+            substeps: 1,
+            steps: vec![
+                StepRecord {
+                    step: 1,
+                    time: 1.0 / 30.0,
+                    kinetic_energy: 0.125,
+                    potential_energy: -0.5,
+                    total_energy: -0.375,
+                    max_stretch: 1.0625,
+                    solver_iterations: Some(7),
+                    solver_residual: Some(3.5e-11),
+                    wall_time_s: 0.0042,
+                },
+                StepRecord {
+                    step: 2,
+                    time: 2.0 / 30.0,
+                    kinetic_energy: 0.25,
+                    potential_energy: -0.75,
+                    total_energy: -0.5,
+                    max_stretch: 1.1,
+                    solver_iterations: None,
+                    solver_residual: None,
+                    wall_time_s: 1e-3,
+                },
+            ],
+        }
+    }
+
+    #[test]
+    fn round_trip_in_memory() {
+        let s = sample();
+        let json = serde_json::to_string_pretty(&s).unwrap();
+        let back: RunSummary = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, s);
+    }
+
+    #[test]
+    fn round_trip_through_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("summary.json");
+        let s = sample();
+        write_summary(&path, &s).unwrap();
+        assert_eq!(read_summary(&path).unwrap(), s);
+        // Overwriting works too, and leaves no temporary file behind.
+        write_summary(&path, &s).unwrap();
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("summary.json")]);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"kinetic_energy\": 0.125"), "{text}");
+        assert!(text.ends_with("}\n"));
+    }
+
+    #[test]
+    fn non_finite_numbers_become_null_and_read_back_as_nan() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("summary.json");
+        let mut s = sample();
+        s.steps[0].total_energy = f64::NAN;
+        s.steps[0].max_stretch = f64::INFINITY;
+        s.steps[0].solver_residual = Some(f64::NAN);
+        write_summary(&path, &s).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"total_energy\": null"), "{text}");
+        let back = read_summary(&path).unwrap();
+        assert!(back.steps[0].total_energy.is_nan());
+        assert!(back.steps[0].max_stretch.is_nan());
+        assert_eq!(back.steps[0].solver_residual, None);
+        assert_eq!(back.steps[1], s.steps[1]);
+    }
+
+    #[test]
+    fn failed_write_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        // The destination is a directory: the final rename fails.
+        let path = dir.path().join("summary.json");
+        std::fs::create_dir(&path).unwrap();
+        let err = write_summary(&path, &sample()).unwrap_err();
+        assert!(err.to_string().contains("summary.json"), "{err}");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("summary.json")]);
+        assert!(path.is_dir());
+
+        // The directory does not exist: nothing is created.
+        let missing = dir.path().join("no-such-dir").join("summary.json");
+        let err = write_summary(&missing, &sample()).unwrap_err();
+        assert!(matches!(err, OutputError::Io { .. }));
+        assert!(!missing.exists());
+    }
+}
