@@ -225,12 +225,7 @@ proptest! {
             })).collect()
         };
         let expected = corners(&mesh);
-        let stl_triangles: Vec<stl_io::Triangle> = expected.iter().map(|c| stl_io::Triangle {
-            normal: stl_io::Normal::new([0.0, 0.0, 0.0]),
-            vertices: c.map(stl_io::Vertex::new),
-        }).collect();
-        let mut binary = Vec::new();
-        stl_io::write_stl(&mut binary, stl_triangles.iter()).unwrap();
+        let binary = binary_stl(&expected);
         let from_binary = parse_stl(&binary, Path::new("mesh.stl")).unwrap();
         prop_assert_eq!(corners(&from_binary), expected.clone());
         // Every grid vertex is used, and f32 rounding merges none of them.
@@ -358,7 +353,7 @@ fn obj_errors() {
     let d = dir.path();
     let obj = |text: String| read_bytes(d, "bad.obj", text.as_bytes());
     let e = in_file(
-        obj(format!("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n")),
+        obj("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n".into()),
         "bad.obj",
     );
     assert!(
@@ -430,16 +425,18 @@ fn obj_errors() {
     );
 }
 
+/// A binary STL written by hand (80-byte header, u32 count, 50 bytes per triangle: normal, three
+/// corners, attribute count), independent of the reader's library. `stl_io`'s own writer is exercised
+/// by the unit tests of `hooke_mesh::io` (it is not a dependency of this package).
 fn binary_stl(triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
-    let triangles: Vec<stl_io::Triangle> = triangles
-        .iter()
-        .map(|t| stl_io::Triangle {
-            normal: stl_io::Normal::new([0.0, 0.0, 1.0]),
-            vertices: t.map(stl_io::Vertex::new),
-        })
-        .collect();
-    let mut bytes = Vec::new();
-    stl_io::write_stl(&mut bytes, triangles.iter()).unwrap();
+    let mut bytes = vec![0u8; 80];
+    bytes.extend(u32::try_from(triangles.len()).unwrap().to_le_bytes());
+    for t in triangles {
+        for c in [0.0f32; 3].iter().chain(t.iter().flatten()) {
+            bytes.extend(c.to_le_bytes());
+        }
+        bytes.extend([0u8; 2]);
+    }
     bytes
 }
 
@@ -524,14 +521,30 @@ fn msh_errors() {
     let good = msh41(UNIT, "1 2 3 4");
     let mesh = msh(&good).unwrap();
     assert!(matches!(mesh, Mesh::Volume(ref m) if m.tetrahedra() == [[0, 1, 2, 3]]));
-    // mshio's number parser does not take "nan": a syntax error on the node's line.
-    let text = parse_error(
+    // Non-finite coordinates parse (in 4.1 through mshio, in 2.x through Rust's parser) and are
+    // caught by validation.
+    let e = in_file(
         msh(&msh41(["0 0 0", "nan 0 0", "0 1 0", "0 0 1"], "1 2 3 4")),
         "bad.msh",
-        Some(11),
     );
-    assert!(text.contains("x coordinate"), "{text}");
-    // A version-2 file reads numbers with Rust's parser, so NaN reaches validation.
+    assert!(
+        matches!(
+            e,
+            MeshError::NonFiniteCoordinate {
+                vertex: 1,
+                axis: 0,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    // A syntax error in a node's coordinates: the line is known in ASCII files.
+    let text = parse_error(
+        msh(&msh41(["0 0 0", "1 zero 0", "0 1 0", "0 0 1"], "1 2 3 4")),
+        "bad.msh",
+        Some(12),
+    );
+    assert!(text.contains("y coordinate"), "{text}");
     let v2 = |coordinate: &str, tet: &str| {
         format!(
             "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 {coordinate} 0 0\n3 0 1 0\n4 0 0 1\n\
@@ -583,8 +596,12 @@ fn msh_errors() {
     );
     let text = parse_error(msh(""), "bad.msh", Some(1));
     assert!(text.contains("empty"), "{text}");
-    // Truncated in the node coordinates.
-    let text = parse_error(msh(&good[..good.find("0 0 1\n").unwrap()]), "bad.msh", None);
+    // Truncated in the node coordinates: the error is at the end, on line 14.
+    let text = parse_error(
+        msh(&good[..good.find("0 0 1\n").unwrap()]),
+        "bad.msh",
+        Some(14),
+    );
     assert!(text.contains("invalid MSH 4.1"), "{text}");
     // Only triangles: no tetrahedra.
     let triangles_only = good.replace("3 1 4 1\n1 1 2 3 4", "2 1 2 1\n1 1 2 3");

@@ -273,7 +273,7 @@ mod tests {
             1.7976931348623157e308,
             123456789.123,
             1e16,
-            9.999999999999999e15,
+            f64::from_bits(1e16f64.to_bits() - 1),
         ] {
             let text = RoundTrip(x).to_string();
             let back: f64 = text.parse().unwrap();

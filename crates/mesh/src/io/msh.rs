@@ -113,7 +113,7 @@ impl Header {
         let rest = &bytes[start..];
         let mut lines = rest.split(|&b| b == b'\n');
         let format_line = lines.next().unwrap_or_default();
-        if trim(format_line) != b"$MeshFormat" {
+        if format_line.trim_ascii() != b"$MeshFormat" {
             return Err(parse_error(
                 name,
                 Some(first_line),
@@ -184,10 +184,6 @@ impl Header {
             little_endian,
         })
     }
-}
-
-fn trim(line: &[u8]) -> &[u8] {
-    line.trim_ascii()
 }
 
 /// Nodes as (tag, position) in file order, and tetrahedra.

@@ -147,6 +147,7 @@ fn vertex_reference(token: &str, read: usize, name: &Path, line: usize) -> Resul
 /// get z = 0), `f a b c` for every triangle and `l a b` for every line, with 1-based indices.
 /// Tetrahedra are not written (OBJ has no volume cells). Coordinates are written with the shortest
 /// digits that read back to the same `f64`, so [`parse_obj`] returns the positions bit for bit.
+/// Output goes out one line per write: pass a buffered writer (as [`super::save_obj`] does).
 ///
 /// # Errors
 /// An error of kind [`std::io::ErrorKind::InvalidInput`] before anything is written if an index is out

@@ -5,10 +5,11 @@
 //! caller's `std::io::Write` (keeping the underlying I/O error, which `fmt::Write` cannot carry), so the
 //! file is streamed, not assembled in a `String`. Points are stored as `f64` (`POINTS n double`) and
 //! `vtkio` prints them with Rust's `Display`, the shortest digits that read back to the same `f64`.
-//! The file declares version 4.2, whose `CELLS n size` layout every VTK since 5 reads; `vtkio` would
-//! switch to the `OFFSETS`/`CONNECTIVITY` layout of version 5.1, which needs VTK 9. The cost of going
-//! through `vtkio` is one owned copy of the frame (coordinates and cell lists) per write; the model
-//! is dropped when the write returns.
+//! The file declares version 4.2, with the classic `CELLS n size` layout that every ParaView reads
+//! (for 5.x `vtkio` would switch to the `OFFSETS`/`CONNECTIVITY` layout, which needs VTK 9). The cost
+//! of going through `vtkio` is one owned copy of the frame (coordinates and cell lists) per write,
+//! dropped when the write returns, and, since `Display` never uses an exponent, very small or very
+//! large coordinates (below 1e-5 or above 1e16 m) are spelled out in full: long, but exact.
 //!
 //! `vtkio` writes each array (all points, all cell lists) on one line; VTK reads legacy data as white-
 //! space-separated tokens, so line length does not matter.
@@ -29,7 +30,8 @@ use super::{xyz, Frame};
 /// Points: every position, 2D frames with z = 0, as `double` with shortest round-trip digits. Cells:
 /// the tetrahedra (VTK type 10) if there are any, otherwise the triangles (type 5); then the lines
 /// (type 3); a frame with none of these gets one vertex cell (type 1) per point so that the points
-/// are visible. No point or cell data.
+/// are visible. No point or cell data. Output goes out in many small writes: pass a buffered writer
+/// (as [`super::save_vtk`] does).
 ///
 /// # Errors
 /// An error of kind [`std::io::ErrorKind::InvalidInput`] before anything is written if an index is out
