@@ -76,7 +76,7 @@ impl<const D: usize> Contact<D> {
                 finite_vector("contact.plane.point", point)?;
                 finite_vector("contact.plane.normal", normal)?;
                 let length = normal.norm();
-                if !(length > 0.0) {
+                if length == 0.0 {
                     return Err(SimError::invalid(
                         "contact.plane.normal",
                         "zero",

@@ -235,13 +235,7 @@ impl<const D: usize> Simulation<D> {
         let damping = scene.damping();
         let drag = (-h * damping.drag).exp();
         let symplectic = matches!(self.settings.integrator, Integrator::SymplecticEuler);
-        let update = |(((x, v), f), (&m, &pinned)): (
-            (
-                (&mut SVector<f64, D>, &mut SVector<f64, D>),
-                &SVector<f64, D>,
-            ),
-            (&f64, &bool),
-        )| {
+        let update = |(((x, v), f), (&m, &pinned)): VertexItem<'_, D>| {
             if pinned {
                 *v = SVector::zeros();
                 return;
@@ -285,6 +279,15 @@ impl<const D: usize> Simulation<D> {
         state.time += h;
     }
 }
+
+/// One vertex's data in the update loop: ((position, velocity), force), (mass, pinned).
+type VertexItem<'a, const D: usize> = (
+    (
+        (&'a mut SVector<f64, D>, &'a mut SVector<f64, D>),
+        &'a SVector<f64, D>,
+    ),
+    (&'a f64, &'a bool),
+);
 
 fn check_finite<const D: usize>(state: &State<D>, step: usize) -> Result<(), SimError> {
     for (quantity, values) in [

@@ -8,6 +8,7 @@
 //!   damping rates), a guaranteed lower bound on the stable step of the linearised rest state;
 //! - `estimated_step`: from the largest eigenvalue of M^(−½) K M^(−½) by power iteration, close to the
 //!   true bound and never below `safe_step`.
+//!
 //! Springs far from rest change the curvature (compressed springs soften, so the rest state is the
 //! stiffest for tension-dominated motion); the bound is an estimate for the scene, not a proof for
 //! every state.
@@ -168,7 +169,7 @@ pub fn stability_bound<const D: usize>(scene: &Scene<D>) -> StabilityBound {
     let mut lambda: f64 = 0.0;
     for _ in 0..POWER_ITERATIONS {
         let norm = u.iter().map(|x| x.norm_squared()).sum::<f64>().sqrt();
-        if !(norm > 0.0) {
+        if norm == 0.0 || !norm.is_finite() {
             break;
         }
         u.iter_mut().for_each(|x| *x /= norm);
