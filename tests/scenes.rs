@@ -80,27 +80,34 @@ fn symplectic_euler_keeps_the_energy_of_an_undamped_run() {
     setup.settings.substeps = Some(4 * auto);
     let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings).unwrap();
     let e0 = sim.energy().total;
-    let mut worst: f64 = 0.0;
+    let mut deviations = Vec::new();
     let mut max_kinetic: f64 = 0.0;
-    for frame in 1..=30 {
+    for _ in 1..=30 {
         sim.step().unwrap();
         let e = sim.energy();
-        worst = worst.max((e.total - e0).abs());
+        deviations.push((e.total - e0).abs());
         max_kinetic = max_kinetic.max(e.kinetic);
-        assert!(
-            (e.total - e0).abs() <= 0.005 * max_kinetic.max(1e-12),
-            "frame {frame}: energy {} J moved {} J from {e0} J (largest kinetic energy {max_kinetic} J)",
-            e.total,
-            e.total - e0
-        );
     }
     assert!(
         max_kinetic > 1e-3,
         "the cloth should have swung: kinetic energy {max_kinetic} J"
     );
+    // The run's energy scale is the largest kinetic energy it reaches (the potential energy that
+    // gravity released).
+    let (frame, worst) = deviations
+        .iter()
+        .copied()
+        .enumerate()
+        .fold(
+            (0, 0.0f64),
+            |a, (k, d)| if d > a.1 { (k + 1, d) } else { a },
+        );
+    assert!(
+        worst <= 0.005 * max_kinetic,
+        "frame {frame}: total energy moved {worst} J from {e0} J (largest kinetic energy {max_kinetic} J)"
+    );
     eprintln!(
-        "largest energy deviation {:.3e} J = {:.3} % of the largest kinetic energy",
-        worst,
+        "largest energy deviation {worst:.3e} J (frame {frame}) = {:.3} % of the largest kinetic energy",
         100.0 * worst / max_kinetic
     );
 }

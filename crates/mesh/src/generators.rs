@@ -115,19 +115,47 @@ pub fn beam_tet_mesh(r: usize) -> Result<TetMesh, MeshError> {
             reason: "a beam needs at least one cube across",
         });
     }
-    let dims = [4 * r + 1, r + 1, r + 1];
-    if dims.iter().product::<usize>() > u32::MAX as usize {
-        return Err(MeshError::TooManyVertices {
-            count: dims.iter().product(),
+    let h = 1.0 / r as f64;
+    lattice_tet_mesh([4 * r, r, r], |[a, b, c]| {
+        Vec3::new(a as f64 * h, b as f64 * h, c as f64 * h)
+    })
+}
+
+/// A box of `cells[0] × cells[1] × cells[2]` lattice cubes, each split into 6 tetrahedra around its
+/// main diagonal (the Freudenthal/Kuhn split, conforming across faces), with lattice point (a, b, c)
+/// placed at `position([a, b, c])` (m). Vertex (a, b, c) has index (a·(c₁+1) + b)·(c₂+1) + c; cubes are
+/// visited in the same order, and each cube's tetrahedra in the order of the axis permutations
+/// (x,y,z), (x,z,y), (y,x,z), (y,z,x), (z,x,y), (z,y,x), oriented positively for an orientation-
+/// preserving `position`.
+///
+/// # Errors
+/// [`MeshError::InvalidParameter`] for a zero cell count, [`MeshError::TooManyVertices`], or the
+/// validation errors of [`TetMesh::new`] (e.g. a `position` that flattens a tetrahedron).
+pub fn lattice_tet_mesh(
+    cells: [usize; 3],
+    mut position: impl FnMut([usize; 3]) -> Vec3,
+) -> Result<TetMesh, MeshError> {
+    if cells.contains(&0) {
+        return Err(MeshError::InvalidParameter {
+            name: "cells",
+            value: format!("{cells:?}"),
+            reason: "every axis needs at least one cell",
         });
     }
-    let h = 1.0 / r as f64;
+    let dims = cells.map(|c| c + 1);
+    let count = dims
+        .iter()
+        .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+        .unwrap_or(usize::MAX);
+    if count > u32::MAX as usize {
+        return Err(MeshError::TooManyVertices { count });
+    }
     let index = |p: [usize; 3]| ((p[0] * dims[1] + p[1]) * dims[2] + p[2]) as u32;
-    let mut positions = Vec::with_capacity(beam_vertex_count(r));
+    let mut positions = Vec::with_capacity(count);
     for a in 0..dims[0] {
         for b in 0..dims[1] {
             for c in 0..dims[2] {
-                positions.push(Vec3::new(a as f64 * h, b as f64 * h, c as f64 * h));
+                positions.push(position([a, b, c]));
             }
         }
     }
@@ -139,22 +167,20 @@ pub fn beam_tet_mesh(r: usize) -> Result<TetMesh, MeshError> {
         [2, 0, 1],
         [2, 1, 0],
     ];
-    let mut tetrahedra = Vec::with_capacity(6 * (dims[0] - 1) * r * r);
-    for a in 0..dims[0] - 1 {
-        for b in 0..r {
-            for c in 0..r {
+    let mut tetrahedra = Vec::with_capacity(6 * cells.iter().product::<usize>());
+    for a in 0..cells[0] {
+        for b in 0..cells[1] {
+            for c in 0..cells[2] {
                 for perm in PERMUTATIONS {
                     // Walk from the lowest corner to the highest, one axis at a time.
                     let mut corner = [a, b, c];
-                    let mut tet = [0u32; 4];
-                    tet[0] = index(corner);
+                    let mut tet = [index(corner), 0, 0, 0];
                     for (k, &axis) in perm.iter().enumerate() {
                         corner[axis] += 1;
                         tet[k + 1] = index(corner);
                     }
                     // Odd permutations give negative orientation: swap two vertices.
-                    let odd = matches!(perm, [0, 2, 1] | [1, 0, 2] | [2, 1, 0]);
-                    if odd {
+                    if matches!(perm, [0, 2, 1] | [1, 0, 2] | [2, 1, 0]) {
                         tet.swap(1, 2);
                     }
                     tetrahedra.push(tet);

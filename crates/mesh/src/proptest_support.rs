@@ -190,46 +190,11 @@ fn jittered_box(
     transform: &Transform,
 ) -> TetMesh {
     let dims = cells.map(|c| c + 1);
-    let index = |p: [usize; 3]| ((p[0] * dims[1] + p[1]) * dims[2] + p[2]) as u32;
-    let mut positions = Vec::with_capacity(jitter.len());
-    for a in 0..dims[0] {
-        for b in 0..dims[1] {
-            for c in 0..dims[2] {
-                let p = Vec3::new(a as f64, b as f64, c as f64)
-                    + jitter[index([a, b, c]) as usize] * amplitude;
-                positions.push(transform.apply(p));
-            }
-        }
-    }
-    const PERMUTATIONS: [[usize; 3]; 6] = [
-        [0, 1, 2],
-        [0, 2, 1],
-        [1, 0, 2],
-        [1, 2, 0],
-        [2, 0, 1],
-        [2, 1, 0],
-    ];
-    let mut tetrahedra = Vec::with_capacity(6 * cells.iter().product::<usize>());
-    for a in 0..cells[0] {
-        for b in 0..cells[1] {
-            for c in 0..cells[2] {
-                for perm in PERMUTATIONS {
-                    let mut corner = [a, b, c];
-                    let mut tet = [index(corner), 0, 0, 0];
-                    for (k, &axis) in perm.iter().enumerate() {
-                        corner[axis] += 1;
-                        tet[k + 1] = index(corner);
-                    }
-                    // Odd permutations are negatively oriented: swap two vertices.
-                    if matches!(perm, [0, 2, 1] | [1, 0, 2] | [2, 1, 0]) {
-                        tet.swap(1, 2);
-                    }
-                    tetrahedra.push(tet);
-                }
-            }
-        }
-    }
-    TetMesh::new(positions, tetrahedra).expect("a jittered Freudenthal box is valid")
+    crate::generators::lattice_tet_mesh(cells, |[a, b, c]| {
+        let k = (a * dims[1] + b) * dims[2] + c;
+        transform.apply(Vec3::new(a as f64, b as f64, c as f64) + jitter[k] * amplitude)
+    })
+    .expect("a jittered Freudenthal box is valid")
 }
 
 /// Mass models: uniform with a total in [0.1, 100] kg, or by density in [1, 10⁴] kg/m³ with a
