@@ -1,31 +1,34 @@
 //! # hooke-solvers
 //!
-//! Linear and nonlinear solvers for hooke's implicit integrators: sparse Cholesky with symbolic
-//! reuse, projective dynamics, Newton with line search, conjugate gradient and Jacobi.
+//! Linear and nonlinear solvers for hooke's implicit integrators. Every solver takes a
+//! `Copy + Default` parameter struct and returns `Result<Report, SolveError>`: the report holds the
+//! iterations, the residual history, the wall time and why it stopped; every error carries the report
+//! up to the failure. Workspaces live in the solver objects and are reused across solves, so the
+//! iterations do not allocate.
 //!
-//! This crate is being built (see the project's issues); today it holds only the report type that
-//! every solver will return, so that the simulation layer can already carry solver reports.
+//! Done so far: the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned
+//! [`ConjugateGradient`] and block [`Jacobi`]. Sparse Cholesky, projective dynamics and Newton follow.
+//!
+//! ```
+//! use hooke_solvers::{CgParams, ConjugateGradient, Identity, StopReason};
+//! use nalgebra::DMatrix;
+//!
+//! let a = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 3.0]);
+//! let b = [1.0, 2.0];
+//! let mut x = [0.0; 2];
+//! let report = ConjugateGradient::new(CgParams::default()).solve(&a, &Identity, &b, &mut x)?;
+//! assert_eq!(report.stop, StopReason::Converged);
+//! assert!((x[0] - 1.0 / 11.0).abs() < 1e-12 && (x[1] - 7.0 / 11.0).abs() < 1e-12);
+//! # Ok::<(), hooke_solvers::SolveError>(())
+//! ```
 #![deny(missing_docs)]
 
-/// Why an iterative solver stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum StopReason {
-    /// The residual met the requested tolerance.
-    Converged,
-    /// The iteration limit was reached first.
-    IterationLimit,
-    /// The residual stopped decreasing.
-    Stagnated,
-}
+pub mod cg;
+pub mod jacobi;
+pub mod operator;
+mod report;
 
-/// What an iterative solve did: iterations, final residual and why it stopped.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SolveSummary {
-    /// Iterations performed.
-    pub iterations: usize,
-    /// The residual after the last iteration (the solver documents its norm).
-    pub residual: f64,
-    /// Why it stopped.
-    pub stop: StopReason,
-}
+pub use cg::{CgParams, ConjugateGradient};
+pub use jacobi::{Jacobi, JacobiParams};
+pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner};
+pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -1,0 +1,100 @@
+//! What every solver returns: a report of its iterations, or an error that carries the report so far.
+
+use std::time::Duration;
+
+/// Why an iterative solver stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum StopReason {
+    /// The residual met the requested tolerance.
+    Converged,
+    /// The iteration limit was reached first.
+    IterationLimit,
+    /// The residual stopped decreasing.
+    Stagnated,
+}
+
+/// What an iterative solve did: iterations, final residual and why it stopped, without the history
+/// (cheap to copy into per-step records).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveSummary {
+    /// Iterations performed.
+    pub iterations: usize,
+    /// The residual after the last iteration (the solver documents its norm).
+    pub residual: f64,
+    /// Why it stopped.
+    pub stop: StopReason,
+}
+
+/// The full account of a solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Iterations performed.
+    pub iterations: usize,
+    /// The residual before the first iteration and after each one (`iterations + 1` entries); each
+    /// solver documents which norm (CG and Jacobi: ‖b − A x‖ / ‖b‖).
+    pub residuals: Vec<f64>,
+    /// Wall time of the solve.
+    pub wall_time: Duration,
+    /// Why it stopped.
+    pub stop: StopReason,
+}
+
+impl Report {
+    pub(crate) fn start(max_iterations: usize) -> Self {
+        Report {
+            iterations: 0,
+            // Reserved once, so the iterations never allocate.
+            residuals: Vec::with_capacity(max_iterations.saturating_add(1).min(1 << 20)),
+            wall_time: Duration::ZERO,
+            stop: StopReason::IterationLimit,
+        }
+    }
+
+    /// The last residual (NaN for a report with none).
+    pub fn residual(&self) -> f64 {
+        self.residuals.last().copied().unwrap_or(f64::NAN)
+    }
+
+    /// Iterations, last residual and stop reason.
+    pub fn summary(&self) -> SolveSummary {
+        SolveSummary {
+            iterations: self.iterations,
+            residual: self.residual(),
+            stop: self.stop,
+        }
+    }
+}
+
+/// Why a solve failed. Every variant carries the report up to the failure.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SolveError {
+    /// A direction of non-positive curvature pᵀAp ≤ 0 was met: the matrix is not positive definite.
+    #[error("the matrix is not positive definite: pᵀAp = {curvature:e} at iteration {}", report.iterations)]
+    NotPositiveDefinite {
+        /// The offending pᵀAp.
+        curvature: f64,
+        /// The report so far.
+        report: Report,
+    },
+    /// The residual grew far beyond its start (e.g. Jacobi on a system that is not diagonally
+    /// dominant enough).
+    #[error("the iteration diverged: residual {:e} after {} iterations, from {:e}", report.residual(), report.iterations, report.residuals.first().copied().unwrap_or(f64::NAN))]
+    Diverged {
+        /// The report so far.
+        report: Report,
+    },
+    /// NaN or infinity appeared in the iterate or the residual.
+    #[error("non-finite values at iteration {}", report.iterations)]
+    NonFinite {
+        /// The report so far.
+        report: Report,
+    },
+    /// A diagonal block of the preconditioner or of Jacobi's splitting is singular.
+    #[error("diagonal block {block} is singular")]
+    SingularBlock {
+        /// Index of the block (vertex).
+        block: usize,
+    },
+}
