@@ -7,7 +7,8 @@
 //! iterations do not allocate.
 //!
 //! Done so far: the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned
-//! [`ConjugateGradient`] and block [`Jacobi`]. Sparse Cholesky, projective dynamics and Newton follow.
+//! [`ConjugateGradient`], block [`Jacobi`], and [`SparseCholesky`] (faer, symbolic analysis reused).
+//! Projective dynamics and Newton follow.
 //!
 //! ```
 //! use hooke_solvers::{CgParams, ConjugateGradient, Identity, StopReason};
@@ -24,11 +25,13 @@
 #![deny(missing_docs)]
 
 pub mod cg;
+pub mod cholesky;
 pub mod jacobi;
 pub mod operator;
 mod report;
 
 pub use cg::{CgParams, ConjugateGradient};
+pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner};
 pub use report::{Report, SolveError, SolveSummary, StopReason};
