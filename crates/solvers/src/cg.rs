@@ -57,7 +57,7 @@ impl ConjugateGradient {
     pub fn solve(
         &mut self,
         a: &impl LinearOperator,
-        preconditioner: &impl Preconditioner,
+        preconditioner: &mut impl Preconditioner,
         b: &[f64],
         x: &mut [f64],
     ) -> Result<Report, SolveError> {

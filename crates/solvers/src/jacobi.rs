@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use crate::operator::{dot, BlockJacobi, LinearOperator, Preconditioner};
+use crate::operator::{dot, BlockJacobi, LinearOperator};
 use crate::report::{Report, SolveError, StopReason};
 
 /// Settings of [`Jacobi`].
@@ -111,7 +111,7 @@ impl Jacobi {
             if report.iterations >= self.params.max_iterations {
                 return Ok(finish(report, StopReason::IterationLimit));
             }
-            diagonal.apply(&self.r, &mut self.z);
+            diagonal.apply_blocks(&self.r, &mut self.z);
             for (x, z) in x.iter_mut().zip(&self.z) {
                 *x += self.params.weight * z;
             }

@@ -17,7 +17,7 @@
 //! let a = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 3.0]);
 //! let b = [1.0, 2.0];
 //! let mut x = [0.0; 2];
-//! let report = ConjugateGradient::new(CgParams::default()).solve(&a, &Identity, &b, &mut x)?;
+//! let report = ConjugateGradient::new(CgParams::default()).solve(&a, &mut Identity, &b, &mut x)?;
 //! assert_eq!(report.stop, StopReason::Converged);
 //! assert!((x[0] - 1.0 / 11.0).abs() < 1e-12 && (x[1] - 7.0 / 11.0).abs() < 1e-12);
 //! # Ok::<(), hooke_solvers::SolveError>(())
@@ -33,5 +33,5 @@ mod report;
 pub use cg::{CgParams, ConjugateGradient};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
-pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner};
+pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -1,7 +1,9 @@
 //! Linear operators and preconditioners, so that an assembled matrix, a matrix-free product and a
 //! factorisation all plug into the same iterative solvers.
 
+use faer::sparse::{SparseColMat, SparseColMatRef};
 use nalgebra::{DMatrix, SMatrix};
+use rayon::prelude::*;
 
 use crate::SolveError;
 
@@ -14,10 +16,99 @@ pub trait LinearOperator {
     fn apply(&self, x: &[f64], y: &mut [f64]);
 }
 
-/// An approximation of A⁻¹ applied to a residual: z = P⁻¹ r.
+/// An approximation of A⁻¹ applied to a residual: z = P⁻¹ r. `&mut self`, because a preconditioner
+/// may own scratch memory (a factorisation does).
 pub trait Preconditioner {
     /// z = P⁻¹ r; `r` and `z` have the operator's dimension; `z` is overwritten.
-    fn apply(&self, r: &[f64], z: &mut [f64]);
+    fn apply(&mut self, r: &[f64], z: &mut [f64]);
+}
+
+impl<P: Preconditioner + ?Sized> Preconditioner for &mut P {
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        (**self).apply(r, z)
+    }
+}
+
+/// y = A x for a general sparse matrix in faer's CSC format (serial scatter over columns).
+impl LinearOperator for SparseColMatRef<'_, usize, f64> {
+    #[track_caller]
+    fn dim(&self) -> usize {
+        assert_eq!(self.nrows(), self.ncols(), "a linear operator is square");
+        self.nrows()
+    }
+
+    #[track_caller]
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        assert!(
+            x.len() == self.ncols() && y.len() == self.nrows(),
+            "vector lengths"
+        );
+        y.fill(0.0);
+        for (j, &xj) in x.iter().enumerate() {
+            for (&i, &v) in self.row_idx_of_col_raw(j).iter().zip(self.val_of_col(j)) {
+                y[i] += v * xj;
+            }
+        }
+    }
+}
+
+impl LinearOperator for SparseColMat<usize, f64> {
+    fn dim(&self) -> usize {
+        self.as_ref().dim()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.as_ref().apply(x, y)
+    }
+}
+
+/// A symmetric sparse matrix in full storage, applied as y_j = (column j)·x: because A = Aᵀ this is
+/// A x, and each output entry is a gather, so the product runs in parallel and gives the same bits
+/// whatever the thread count. The caller vouches for the symmetry (hooke's assembled Hessians and
+/// M + h²L are symmetric by construction).
+#[derive(Clone, Copy, Debug)]
+pub struct Symmetric<'a>(pub SparseColMatRef<'a, usize, f64>);
+
+impl LinearOperator for Symmetric<'_> {
+    #[track_caller]
+    fn dim(&self) -> usize {
+        self.0.dim()
+    }
+
+    #[track_caller]
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let a = self.0;
+        assert!(
+            x.len() == a.ncols() && y.len() == a.nrows(),
+            "vector lengths"
+        );
+        let column = |(j, yj): (usize, &mut f64)| {
+            *yj = a
+                .row_idx_of_col_raw(j)
+                .iter()
+                .zip(a.val_of_col(j))
+                .map(|(&i, &v)| v * x[i])
+                .sum();
+        };
+        if y.len() >= 4096 {
+            y.par_iter_mut()
+                .enumerate()
+                .with_min_len(1024)
+                .for_each(column);
+        } else {
+            y.iter_mut().enumerate().for_each(column);
+        }
+    }
+}
+
+/// A Cholesky factorisation (of A, or of a nearby matrix such as M + h²L for a Newton system) as a
+/// preconditioner: z = L⁻ᵀ L⁻¹ r.
+impl Preconditioner for crate::SparseCholesky {
+    #[track_caller]
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        z.copy_from_slice(r);
+        self.solve_slice(z);
+    }
 }
 
 impl LinearOperator for DMatrix<f64> {
@@ -47,7 +138,7 @@ impl<T: LinearOperator + ?Sized> LinearOperator for &T {
 pub struct Identity;
 
 impl Preconditioner for Identity {
-    fn apply(&self, r: &[f64], z: &mut [f64]) {
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
         z.copy_from_slice(r);
     }
 }
@@ -110,7 +201,19 @@ impl<const B: usize> BlockJacobi<B> {
 
 impl<const B: usize> Preconditioner for BlockJacobi<B> {
     #[track_caller]
-    fn apply(&self, r: &[f64], z: &mut [f64]) {
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        self.apply_blocks(r, z)
+    }
+}
+
+impl<const B: usize> BlockJacobi<B> {
+    /// z_i = A_ii⁻¹ r_i for every block.
+    ///
+    /// # Panics
+    /// If `r` or `z` is not of length [`BlockJacobi::dim`].
+    #[track_caller]
+    pub fn apply_blocks(&self, r: &[f64], z: &mut [f64]) {
+        assert_eq!(z.len(), self.dim(), "output length");
         assert_eq!(r.len(), self.dim(), "residual length");
         for ((inv, r), z) in self
             .inverses

@@ -79,9 +79,9 @@ proptest! {
             let mut x = vec![0.0; n];
             let mut cg = ConjugateGradient::new(params);
             let report = if preconditioned {
-                cg.solve(&a, &BlockJacobi::<3>::from_dense(&a).unwrap(), b.as_slice(), &mut x)
+                cg.solve(&a, &mut BlockJacobi::<3>::from_dense(&a).unwrap(), b.as_slice(), &mut x)
             } else {
-                cg.solve(&a, &Identity, b.as_slice(), &mut x)
+                cg.solve(&a, &mut Identity, b.as_slice(), &mut x)
             }
             .unwrap();
             prop_assert_eq!(report.stop, StopReason::Converged);
@@ -112,7 +112,7 @@ proptest! {
         let b = rhs(n);
         let mut x = vec![0.0; n];
         let params = CgParams { tolerance: 1e-14, max_iterations: 2 };
-        let report = ConjugateGradient::new(params).solve(&a, &Identity, b.as_slice(), &mut x).unwrap();
+        let report = ConjugateGradient::new(params).solve(&a, &mut Identity, b.as_slice(), &mut x).unwrap();
         prop_assert_eq!(report.stop, StopReason::IterationLimit);
         prop_assert_eq!(report.iterations, 2);
         let jacobi = JacobiParams { tolerance: 1e-14, max_iterations: 2, divergence_factor: f64::INFINITY, ..Default::default() };
@@ -131,7 +131,7 @@ proptest! {
 fn cg_reports_an_indefinite_system() {
     let a = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, -1.0, 2.0]));
     let mut x = vec![0.0; 3];
-    match ConjugateGradient::default().solve(&a, &Identity, &[1.0, 1.0, 1.0], &mut x) {
+    match ConjugateGradient::default().solve(&a, &mut Identity, &[1.0, 1.0, 1.0], &mut x) {
         Err(SolveError::NotPositiveDefinite { curvature, report }) => {
             assert!(curvature <= 0.0);
             assert_eq!(report.residuals.len(), report.iterations + 1);
@@ -182,7 +182,7 @@ fn solving_again_reuses_the_workspace_and_gives_the_same_bits() {
     let mut cg = ConjugateGradient::default();
     let mut x1 = vec![0.0; 9];
     let mut x2 = vec![0.0; 9];
-    cg.solve(&a, &Identity, b.as_slice(), &mut x1).unwrap();
-    cg.solve(&a, &Identity, b.as_slice(), &mut x2).unwrap();
+    cg.solve(&a, &mut Identity, b.as_slice(), &mut x1).unwrap();
+    cg.solve(&a, &mut Identity, b.as_slice(), &mut x2).unwrap();
     assert_eq!(x1, x2);
 }
