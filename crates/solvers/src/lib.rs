@@ -8,7 +8,7 @@
 //!
 //! Done so far: the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned
 //! [`ConjugateGradient`], block [`Jacobi`], and [`SparseCholesky`] (faer, symbolic analysis reused).
-//! Projective dynamics and Newton follow.
+//! [`Newton`] with an adaptive Hessian shift and a line search. Projective dynamics follows.
 //!
 //! ```
 //! use hooke_solvers::{CgParams, ConjugateGradient, Identity, StopReason};
@@ -27,11 +27,13 @@
 pub mod cg;
 pub mod cholesky;
 pub mod jacobi;
+pub mod newton;
 pub mod operator;
 mod report;
 
 pub use cg::{CgParams, ConjugateGradient};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
+pub use newton::{Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem, NewtonReport};
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use report::{Report, SolveError, SolveSummary, StopReason};
