@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use crate::spring;
 
 /// Below this many springs the parallel loops run serially: thread start-up costs more than the work.
-const PARALLEL_THRESHOLD: usize = 8 * 1024;
+pub(crate) const PARALLEL_THRESHOLD: usize = 8 * 1024;
 /// Work items per rayon task: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 2048;
 
@@ -59,7 +59,7 @@ impl Incidence {
         &self.entries[self.offsets[vertex]..self.offsets[vertex + 1]]
     }
 
-    /// Sum per-spring values into per-vertex values: out_v = Σ sign · per_spring[s].
+    /// Sum per-spring values into per-vertex values: out_v = Σ sign · `per_spring[s]`.
     ///
     /// # Panics
     /// If `out` does not have one entry per vertex.

@@ -1,12 +1,31 @@
 //! # hooke-assembly
 //!
 //! Everything the integrators and solvers need from the physics of springs: per-spring energies and
-//! forces ([`spring`]) and their sums over a mesh ([`forces`]), parallel and deterministic.
+//! forces and their derivatives ([`spring`]), their sums over a mesh ([`forces`]), parallel and
+//! deterministic, the sparse Hessian of the implicit Euler objective in faer's CSC format with a
+//! fixed pattern refilled in place ([`hessian`]), the fixed-vertex reduction ([`FreeDofs`]), the
+//! projective dynamics matrices with their Kronecker structure kept ([`pd`]), and central finite
+//! differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
+//! `interop` converts the assembled matrices to those crates' CSC types.
 //!
 //! Units: metres, kilograms, seconds; stiffness in N/m, energy in J, force in N.
 #![deny(missing_docs)]
 
+mod dofs;
+mod error;
+pub mod fd;
 pub mod forces;
+mod graph;
+pub mod hessian;
+#[cfg(any(feature = "nalgebra-sparse", feature = "sprs"))]
+pub mod interop;
+pub mod pd;
 pub mod spring;
 
+pub use dofs::FreeDofs;
+pub use error::AssemblyError;
+pub use hessian::{HessianParams, HessianPattern, HessianWorkspace};
+pub use pd::LaplacianPattern;
+
 pub use forces::{deterministic_sum, max_stretch, spring_energy, Dashpot, Incidence, SpringForces};
+pub use spring::Definiteness;

@@ -1,0 +1,332 @@
+//! The block sparsity structure shared by the Hessian ([`crate::hessian`]) and the projective
+//! dynamics matrices ([`crate::pd`]): one block column per free vertex, one block per free vertex
+//! pair joined by a spring plus the diagonal, and for every block column the list of springs that
+//! contribute to it, in increasing spring order, with the slot they write to.
+//!
+//! Value layout for blocks of size D×D (D = 1 for scalar matrices), column-major CSC with both
+//! triangles stored: block column `J` (free vertex J) holds `len_J` blocks with sorted block rows;
+//! its D scalar columns are contiguous in the value array, starting at `D²·block_offset(J)`; scalar
+//! column `D·J + b` has `D·len_J` entries, and entry (a, b) of the block in slot p is at
+//! `D²·block_offset(J) + b·D·len_J + D·p + a`. So each block column owns one contiguous range of
+//! values, which lets columns be filled in parallel without sharing.
+
+use std::ops::Range;
+
+use faer::sparse::SymbolicSparseColMat;
+use hooke_mesh::Spring;
+
+use crate::FreeDofs;
+
+/// One spring's contribution to a block column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Contribution {
+    /// Spring index.
+    pub spring: u32,
+    /// Slot of the off-diagonal block this spring adds to, [`Contribution::PINNED_OTHER`] if its
+    /// other end is pinned (it then only adds to the diagonal block).
+    pub slot: u32,
+    /// Whether this is the first spring writing to `slot` (write, not add: no zeroing pass).
+    pub first: bool,
+    /// How the spring's block is obtained in a fused refill (see [`Reuse`]).
+    pub reuse: Reuse,
+}
+
+/// How a block column obtains a spring's block in a fused refill. Each spring's block is computed
+/// by the first (lower) of its free ends, which keeps it for the other end if that end is in the same
+/// leaf (leaves are processed column by column in increasing order, one leaf per task); otherwise
+/// each end computes it. A block is a pure function of the spring, so the bits are the same either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Reuse {
+    /// Compute it (the other end is pinned or in another leaf).
+    Compute,
+    /// Compute it and keep it for the other end.
+    ComputeAndKeep,
+    /// Read the block kept by the other end.
+    Kept,
+}
+
+impl Contribution {
+    /// `slot` of a spring whose other end is pinned.
+    pub const PINNED_OTHER: u32 = u32::MAX;
+}
+
+/// Block structure of a symmetric matrix over the free vertices, from a spring graph.
+#[derive(Clone, Debug)]
+pub(crate) struct BlockGraph {
+    /// Leaf boundaries: leaf k is columns `leaves[k]..leaves[k + 1]`.
+    leaves: Vec<usize>,
+    free: FreeDofs,
+    spring_count: usize,
+    /// Block column J's blocks are `block_offsets[J]..block_offsets[J + 1]` (len free + 1).
+    block_offsets: Vec<usize>,
+    /// Free block-row index of each block, sorted within a column.
+    block_rows: Vec<u32>,
+    /// Slot of the diagonal block within each block column.
+    diagonal_slot: Vec<u32>,
+    /// Block column J's contributions are `contribution_offsets[J]..contribution_offsets[J + 1]`.
+    contribution_offsets: Vec<usize>,
+    contributions: Vec<Contribution>,
+}
+
+impl BlockGraph {
+    /// O(s log d) for s springs of largest vertex degree d.
+    ///
+    /// # Panics
+    /// If `free` was built for a different vertex count, or a spring has an end out of range or
+    /// twice the same end.
+    #[track_caller]
+    pub fn new(vertex_count: usize, springs: &[Spring], free: &FreeDofs) -> Self {
+        assert_eq!(
+            free.vertex_count(),
+            vertex_count,
+            "the free-DOF map was built for another vertex count"
+        );
+        assert!(
+            springs.len() < u32::MAX as usize,
+            "too many springs for u32 indices"
+        );
+        let n_free = free.free_count();
+        // Incidence of free vertices, in increasing spring order.
+        let mut contribution_offsets = vec![0usize; n_free + 1];
+        for (index, s) in springs.iter().enumerate() {
+            let (i, j) = s.ends();
+            assert!(
+                i < vertex_count && j < vertex_count,
+                "spring {index} ({i}, {j}) has an end out of range (vertex count {vertex_count})"
+            );
+            assert!(i != j, "spring {index} joins vertex {i} to itself");
+            for v in [i, j] {
+                if let Some(f) = free.free_index(v) {
+                    contribution_offsets[f + 1] += 1;
+                }
+            }
+        }
+        for f in 0..n_free {
+            contribution_offsets[f + 1] += contribution_offsets[f];
+        }
+        let mut fill = contribution_offsets.clone();
+        let mut contributions = vec![
+            Contribution {
+                spring: 0,
+                slot: Contribution::PINNED_OTHER,
+                first: false,
+                reuse: Reuse::Compute,
+            };
+            contribution_offsets[n_free]
+        ];
+        // Temporarily keep the other end's free index (or PINNED_OTHER) in `slot`.
+        for (index, s) in springs.iter().enumerate() {
+            let (i, j) = s.ends();
+            let (fi, fj) = (free.free_index(i), free.free_index(j));
+            for (this, other) in [(fi, fj), (fj, fi)] {
+                if let Some(f) = this {
+                    contributions[fill[f]] = Contribution {
+                        spring: index as u32,
+                        slot: other.map_or(Contribution::PINNED_OTHER, |o| o as u32),
+                        first: false,
+                        reuse: Reuse::Compute,
+                    };
+                    fill[f] += 1;
+                }
+            }
+        }
+        drop(fill);
+        // Leaves: contiguous column ranges, by halving down to a limit fixed by the size alone.
+        let mut leaves = vec![0];
+        split_leaves(
+            0..n_free,
+            (n_free / LEAVES_WANTED).clamp(MIN_LEAF_COLUMNS, MAX_LEAF_COLUMNS),
+            &mut leaves,
+        );
+        let mut leaf_of = vec![0u32; n_free];
+        for (leaf, range) in leaves.windows(2).enumerate() {
+            leaf_of[range[0]..range[1]].fill(leaf as u32);
+        }
+        for column in 0..n_free {
+            let range = contribution_offsets[column]..contribution_offsets[column + 1];
+            for c in &mut contributions[range] {
+                if c.slot != Contribution::PINNED_OTHER {
+                    let other = c.slot as usize;
+                    let same_leaf = leaf_of[other] == leaf_of[column];
+                    c.reuse = match (same_leaf, other > column) {
+                        (false, _) => Reuse::Compute,
+                        (true, true) => Reuse::ComputeAndKeep,
+                        (true, false) => Reuse::Kept,
+                    };
+                }
+            }
+        }
+        drop(leaf_of);
+        // Block rows per column: the diagonal and the free neighbours, sorted, deduplicated.
+        let mut block_offsets = Vec::with_capacity(n_free + 1);
+        block_offsets.push(0);
+        let mut block_rows = Vec::with_capacity(n_free + contributions.len());
+        let mut diagonal_slot = Vec::with_capacity(n_free);
+        let mut seen = Vec::new();
+        for column in 0..n_free {
+            let start = block_rows.len();
+            block_rows.push(column as u32);
+            let range = contribution_offsets[column]..contribution_offsets[column + 1];
+            block_rows.extend(
+                contributions[range.clone()]
+                    .iter()
+                    .filter(|c| c.slot != Contribution::PINNED_OTHER)
+                    .map(|c| c.slot),
+            );
+            block_rows[start..].sort_unstable();
+            let mut unique = start;
+            for k in start..block_rows.len() {
+                if k == start || block_rows[k] != block_rows[unique - 1] {
+                    block_rows[unique] = block_rows[k];
+                    unique += 1;
+                }
+            }
+            block_rows.truncate(unique);
+            let rows = &block_rows[start..];
+            diagonal_slot.push(
+                rows.binary_search(&(column as u32))
+                    .expect("the diagonal block is always present") as u32,
+            );
+            seen.clear();
+            seen.resize(rows.len(), false);
+            for c in &mut contributions[range] {
+                if c.slot != Contribution::PINNED_OTHER {
+                    let slot = rows
+                        .binary_search(&c.slot)
+                        .expect("every free neighbour has a block");
+                    c.first = !seen[slot];
+                    seen[slot] = true;
+                    c.slot = slot as u32;
+                }
+            }
+            block_offsets.push(block_rows.len());
+        }
+        BlockGraph {
+            leaves,
+            free: free.clone(),
+            spring_count: springs.len(),
+            block_offsets,
+            block_rows,
+            diagonal_slot,
+            contribution_offsets,
+            contributions,
+        }
+    }
+
+    pub fn free(&self) -> &FreeDofs {
+        &self.free
+    }
+
+    pub fn spring_count(&self) -> usize {
+        self.spring_count
+    }
+
+    /// Number of block columns (free vertices).
+    pub fn columns(&self) -> usize {
+        self.block_offsets.len() - 1
+    }
+
+    /// Number of stored blocks.
+    pub fn blocks(&self) -> usize {
+        self.block_rows.len()
+    }
+
+    /// The blocks of column `column`, as a range of block indices.
+    #[inline]
+    pub fn column_blocks(&self, column: usize) -> Range<usize> {
+        self.block_offsets[column]..self.block_offsets[column + 1]
+    }
+
+    #[inline]
+    pub fn diagonal_slot(&self, column: usize) -> usize {
+        self.diagonal_slot[column] as usize
+    }
+
+    #[inline]
+    pub fn contributions(&self, column: usize) -> &[Contribution] {
+        &self.contributions
+            [self.contribution_offsets[column]..self.contribution_offsets[column + 1]]
+    }
+
+    /// The symbolic CSC structure of the scalar matrix with D×D blocks (layout in the module docs).
+    pub fn symbolic<const D: usize>(&self) -> SymbolicSparseColMat<usize> {
+        let n = D * self.columns();
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::with_capacity(D * D * self.blocks());
+        col_ptr.push(0);
+        for column in 0..self.columns() {
+            let rows = &self.block_rows[self.column_blocks(column)];
+            for _ in 0..D {
+                for &row in rows {
+                    row_idx.extend((0..D).map(|a| D * row as usize + a));
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx)
+    }
+
+    /// Fill the values of every block column with `fill_column(column, values_of_column)`, leaf by
+    /// leaf (in parallel by recursive halving of the leaf list if `parallel`), each leaf's columns in
+    /// increasing order by one task. Each column is filled by one call, so the result does not depend
+    /// on the number of threads.
+    pub fn for_each_column<const D: usize, F>(
+        &self,
+        values: &mut [f64],
+        parallel: bool,
+        fill_column: &F,
+    ) where
+        F: Fn(usize, &mut [f64]) + Sync,
+    {
+        self.leaves_range::<D, F>(0..self.leaves.len() - 1, values, parallel, fill_column);
+    }
+
+    fn leaves_range<const D: usize, F>(
+        &self,
+        leaves: Range<usize>,
+        values: &mut [f64],
+        parallel: bool,
+        fill_column: &F,
+    ) where
+        F: Fn(usize, &mut [f64]) + Sync,
+    {
+        if !parallel || leaves.len() <= 1 {
+            let mut rest = values;
+            for column in self.leaves[leaves.start]..self.leaves[leaves.end] {
+                let len = D * D * self.column_blocks(column).len();
+                let (this, tail) = rest.split_at_mut(len);
+                fill_column(column, this);
+                rest = tail;
+            }
+        } else {
+            let mid = leaves.start + leaves.len() / 2;
+            let first = self.leaves[leaves.start];
+            let split = D * D * (self.block_offsets[self.leaves[mid]] - self.block_offsets[first]);
+            let (left, right) = values.split_at_mut(split);
+            rayon::join(
+                || self.leaves_range::<D, F>(leaves.start..mid, left, true, fill_column),
+                || self.leaves_range::<D, F>(mid..leaves.end, right, true, fill_column),
+            );
+        }
+    }
+}
+
+/// About this many leaves on large meshes, to balance the load over a few threads.
+const LEAVES_WANTED: usize = 16;
+/// Leaves are halved down to at most `columns / LEAVES_WANTED` columns, kept within these bounds:
+/// large enough that few springs cross a leaf boundary on meshes with a banded numbering (cloth-N
+/// joins columns up to 2N apart; a crossing spring's block is computed twice), small enough for
+/// load balance.
+const MIN_LEAF_COLUMNS: usize = 1024;
+const MAX_LEAF_COLUMNS: usize = 8192;
+
+/// Append the end of each leaf of `columns` to `boundaries`, halving until ≤ `limit` columns.
+fn split_leaves(columns: Range<usize>, limit: usize, boundaries: &mut Vec<usize>) {
+    if columns.len() <= limit {
+        boundaries.push(columns.end);
+    } else {
+        let mid = columns.start + columns.len() / 2;
+        split_leaves(columns.start..mid, limit, boundaries);
+        split_leaves(mid..columns.end, limit, boundaries);
+    }
+}
