@@ -8,7 +8,7 @@
 //!
 //! Done so far: the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned
 //! [`ConjugateGradient`], block [`Jacobi`], and [`SparseCholesky`] (faer, symbolic analysis reused).
-//! [`Newton`] with an adaptive Hessian shift and a line search. Projective dynamics follows.
+//! [`Newton`] with an adaptive Hessian shift and a line search, and [`ProjectiveDynamics`].
 //!
 //! ```
 //! use hooke_solvers::{CgParams, ConjugateGradient, Identity, StopReason};
@@ -29,6 +29,7 @@ pub mod cholesky;
 pub mod jacobi;
 pub mod newton;
 pub mod operator;
+pub mod projective;
 mod report;
 
 pub use cg::{CgParams, ConjugateGradient};
@@ -36,4 +37,5 @@ pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
 pub use newton::{Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem, NewtonReport};
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
+pub use projective::{PdParams, PdReport, ProjectiveDynamics};
 pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -7,6 +7,8 @@
 //! Newton step, quadratic convergence near the solution) and raising μ by a factor 10 each time the
 //! factorisation fails or the step needs a short line search; lowering it after full steps. Every
 //! shift is counted in the report. A backtracking (Armijo) line search on Φ guarantees decrease.
+//! When a shortened step no longer lowers Φ beyond its round-off, the solve stops with
+//! [`StopReason::Stagnated`]: the tolerance asked for is below what the arithmetic resolves.
 
 use std::time::{Duration, Instant};
 
@@ -15,6 +17,10 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use crate::cholesky::{CholeskyError, CholeskyParams, SparseCholesky};
 use crate::operator::dot;
 use crate::report::StopReason;
+
+/// A line-searched step that lowers Φ by at most this many units of round-off (ε|Φ|) counts as no
+/// progress: the iterate is at the resolution floor of Φ and its gradient.
+const STAGNATION_ULPS: f64 = 8.0;
 
 /// The objective Newton minimises. The Hessian's pattern is fixed: [`NewtonProblem::hessian`]
 /// refills the values of [`NewtonProblem::pattern`] and returns the matrix (full symmetric storage).
@@ -323,6 +329,11 @@ impl Newton {
                 });
             };
             x.copy_from_slice(&self.trial);
+            // A shortened step that lowers Φ by no more than its round-off means the iterate sits on
+            // the floor of what the arithmetic can resolve: further iterations would only inflate
+            // the shift. Stop and say so.
+            let stagnated =
+                alpha < 1.0 && phi - new_phi <= STAGNATION_ULPS * f64::EPSILON * phi.abs();
             phi = new_phi;
             problem.gradient(x, &mut self.g);
             gradient = dot(&self.g, &self.g).sqrt() * scale;
@@ -337,6 +348,9 @@ impl Newton {
                 failed_factorizations: failed,
                 step_length: alpha,
             });
+            if stagnated {
+                return Ok(finish(report, StopReason::Stagnated));
+            }
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.
             if alpha == 1.0 {
                 self.shift = if self.shift <= p.initial_shift {
