@@ -46,7 +46,7 @@ struct RunArgs {
     /// A built-in scene name (see `hooke scenes`) or a scene file (.toml).
     #[arg(default_value = DEFAULT_SCENE)]
     scene: String,
-    /// Time integrator: explicit-euler or symplectic-euler.
+    /// Time integrator: explicit-euler, symplectic-euler, newton (backward Euler) or pd (projective dynamics).
     #[arg(long)]
     integrator: Option<String>,
     /// Number of frames to run (default: the scene's).

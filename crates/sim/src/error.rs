@@ -73,6 +73,20 @@ pub enum SimError {
         /// The limit it crossed.
         limit: f64,
     },
+    /// The integrator cannot model a term the scene asks for (yet); running without it would be wrong.
+    #[error("the {integrator} integrator does not support {what} yet; use symplectic-euler for this scene")]
+    Unsupported {
+        /// The integrator.
+        integrator: String,
+        /// The scene term.
+        what: String,
+    },
+    /// The implicit solver failed (the message carries its report).
+    #[error("the solver failed: {message}")]
+    Solver {
+        /// What the solver reported.
+        message: String,
+    },
     /// The state became NaN or infinite.
     #[error("step {step}: vertex {vertex} has a non-finite {quantity}; the simulation diverged")]
     NonFinite {

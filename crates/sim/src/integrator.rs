@@ -13,6 +13,12 @@ pub enum Integrator {
     /// Symplectic (semi-implicit) Euler, seed 004's order: v⁺ = v + h M⁻¹ f(x, v), drag,
     /// x⁺ = x + h v⁺, contact. Stable below the step bound; energy oscillates but does not drift.
     SymplecticEuler,
+    /// Backward Euler solved by Newton's method (seed 003) to [`Settings::newton`]'s tolerance.
+    /// Unconditionally stable; dissipates energy.
+    Newton,
+    /// Backward Euler solved approximately by projective dynamics (Liu et al. 2013) with
+    /// [`Settings::pd`]'s iteration budget; converges to the Newton solution as iterations grow.
+    ProjectiveDynamics,
 }
 
 impl Integrator {
@@ -25,6 +31,8 @@ impl Integrator {
         match self {
             Integrator::ExplicitEuler => "explicit-euler",
             Integrator::SymplecticEuler => "symplectic-euler",
+            Integrator::Newton => "newton",
+            Integrator::ProjectiveDynamics => "pd",
         }
     }
 
@@ -58,6 +66,8 @@ impl FromStr for Integrator {
         match s {
             "explicit-euler" | "forward-euler" => Ok(Integrator::ExplicitEuler),
             "symplectic-euler" | "semi-implicit-euler" => Ok(Integrator::SymplecticEuler),
+            "newton" | "backward-euler" => Ok(Integrator::Newton),
+            "pd" | "projective-dynamics" => Ok(Integrator::ProjectiveDynamics),
             other => Err(UnknownIntegrator {
                 name: other.to_string(),
             }),
@@ -78,6 +88,10 @@ pub struct Settings {
     pub allow_unstable: bool,
     /// Use rayon for the per-spring and per-vertex loops (results are identical either way).
     pub parallel: bool,
+    /// Newton's settings (default: relative gradient 1e-8).
+    pub newton: hooke_solvers::NewtonParams,
+    /// Projective dynamics' settings (default: 10 iterations).
+    pub pd: hooke_solvers::PdParams,
 }
 
 impl Default for Settings {
@@ -87,6 +101,8 @@ impl Default for Settings {
             substeps: None,
             allow_unstable: false,
             parallel: true,
+            newton: hooke_solvers::NewtonParams::default(),
+            pd: hooke_solvers::PdParams::default(),
         }
     }
 }

@@ -29,6 +29,7 @@ pub mod damping;
 mod error;
 pub mod file;
 pub mod forces;
+mod implicit;
 pub mod integrator;
 mod scene;
 pub mod scenes;

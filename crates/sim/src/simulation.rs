@@ -7,6 +7,7 @@ use hooke_solvers::SolveSummary;
 use nalgebra::SVector;
 use rayon::prelude::*;
 
+use crate::implicit::BackwardEuler;
 use crate::integrator::{Integrator, Settings};
 use crate::stability::{stability_bound, StabilityBound};
 use crate::{Energy, Scene, SimError, State};
@@ -45,6 +46,7 @@ pub struct Simulation<const D: usize> {
     steps_taken: usize,
     start_time: f64,
     divergence_limit: f64,
+    implicit: Option<BackwardEuler<D>>,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -107,6 +109,11 @@ impl<const D: usize> Simulation<D> {
         } else {
             1
         };
+        let implicit = match settings.integrator {
+            Integrator::Newton => Some(BackwardEuler::newton(&scene, settings.newton)?),
+            Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(&scene, settings.pd)?),
+            _ => None,
+        };
         let spring_forces = SpringForces::new(n, scene.mesh().springs());
         let start_time = state.time;
         let extent = state
@@ -126,6 +133,7 @@ impl<const D: usize> Simulation<D> {
             steps_taken: 0,
             start_time,
             divergence_limit,
+            implicit,
         })
     }
 
@@ -171,9 +179,16 @@ impl<const D: usize> Simulation<D> {
     /// state is then left as it was at the failure.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
-        let h = self.scene.time_step() / self.substeps as f64;
-        for _ in 0..self.substeps {
-            self.explicit_substep(h);
+        let mut solver = None;
+        if let Some(implicit) = &mut self.implicit {
+            let state = &mut self.state;
+            solver =
+                Some(implicit.step(&self.scene, &mut state.positions, &mut state.velocities)?);
+        } else {
+            let h = self.scene.time_step() / self.substeps as f64;
+            for _ in 0..self.substeps {
+                self.explicit_substep(h);
+            }
         }
         self.steps_taken += 1;
         // Frame times are exact multiples of h: summing substeps would drift by round-off.
@@ -182,7 +197,7 @@ impl<const D: usize> Simulation<D> {
         self.check_bounded()?;
         Ok(StepReport {
             substeps: self.substeps,
-            solver: None,
+            solver,
             wall_time: start.elapsed(),
         })
     }
