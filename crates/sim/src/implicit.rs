@@ -12,109 +12,26 @@
 //! solve; a scene that asks for them is refused with [`SimError::Unsupported`] rather than run with
 //! the term silently missing.
 
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use hooke_assembly::{FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces};
-use hooke_mesh::Spring;
+use hooke_assembly::FreeDofs;
 use hooke_solvers::{
-    Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, SolveSummary, StopReason,
+    BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    SolveSummary, StopReason,
 };
 use nalgebra::SVector;
 
 use crate::forces::ExternalForce;
 use crate::{Scene, SimError};
 
-/// Φ over the free DOFs of one step, for Newton.
-#[derive(Debug)]
-struct StepObjective<const D: usize> {
-    free: FreeDofs,
-    pattern: HessianPattern<D>,
-    workspace: HessianWorkspace<D>,
-    values: Vec<f64>,
-    forces: SpringForces<D>,
-    force: Vec<SVector<f64, D>>,
-    masses: Vec<f64>,
-    springs: Vec<Spring>,
-    shift: Vec<f64>,
-    h: f64,
-    /// Inertial target per vertex.
-    y: Vec<SVector<f64, D>>,
-    /// The full positions: pinned vertices fixed, free ones overwritten from the unknowns.
-    x: Vec<SVector<f64, D>>,
-}
-
-impl<const D: usize> StepObjective<D> {
-    fn expand(&mut self, xf: &[f64]) {
-        for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            self.x[v as usize] = SVector::from_column_slice(&xf[D * f..D * f + D]);
-        }
-    }
-}
-
-impl<const D: usize> NewtonProblem for StepObjective<D> {
-    fn dim(&self) -> usize {
-        D * self.free.free_count()
-    }
-
-    fn objective(&mut self, xf: &[f64]) -> f64 {
-        self.expand(xf);
-        let inertia: f64 = self
-            .free
-            .free_vertices()
-            .iter()
-            .map(|&v| {
-                let v = v as usize;
-                0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
-            })
-            .sum();
-        inertia + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, true)
-    }
-
-    fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
-        self.expand(xf);
-        self.forces
-            .compute(&self.springs, &self.x, None, &mut self.force, true);
-        let h2 = self.h * self.h;
-        for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            let v = v as usize;
-            let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
-            g[D * f..D * f + D].copy_from_slice(gv.as_slice());
-        }
-    }
-
-    fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
-        self.pattern.symbolic()
-    }
-
-    fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
-        self.expand(xf);
-        self.pattern.assemble_into(
-            &self.springs,
-            &self.x,
-            &self.masses,
-            self.h,
-            HessianParams::default(),
-            &mut self.workspace,
-            &mut self.values,
-        );
-        self.pattern.matrix(&self.values)
-    }
-
-    fn shift_diagonal(&self) -> &[f64] {
-        &self.shift
-    }
-}
-
 /// Which solver, with its state kept across steps.
 #[derive(Debug)]
 enum Solver<const D: usize> {
     Newton {
         newton: Box<Newton>,
-        objective: Box<StepObjective<D>>,
+        objective: Box<BackwardEulerStep<D>>,
         unknowns: Vec<f64>,
     },
     Projective {
         pd: Box<ProjectiveDynamics<D>>,
-        y: Vec<SVector<f64, D>>,
     },
 }
 
@@ -124,6 +41,8 @@ pub(crate) struct BackwardEuler<const D: usize> {
     solver: Solver<D>,
     gravity: SVector<f64, D>,
     x_start: Vec<SVector<f64, D>>,
+    /// The inertial target y of the current step, per vertex.
+    y: Vec<SVector<f64, D>>,
 }
 
 /// Refuse scene terms the implicit solve does not model yet.
@@ -158,29 +77,11 @@ impl<const D: usize> BackwardEuler<D> {
         let n = mesh.vertex_count();
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
-        let pattern = HessianPattern::new(n, mesh.springs(), Some(&free));
-        let newton = Newton::new(pattern.symbolic(), params).map_err(|e| SimError::Solver {
+        let objective =
+            BackwardEulerStep::new(mesh.springs(), mesh.masses(), free, scene.time_step());
+        let newton = Newton::new(objective.pattern(), params).map_err(|e| SimError::Solver {
             message: e.to_string(),
         })?;
-        let shift = free
-            .free_vertices()
-            .iter()
-            .flat_map(|&v| [mesh.masses()[v as usize]; D])
-            .collect();
-        let objective = StepObjective {
-            workspace: pattern.workspace(),
-            values: pattern.new_values(),
-            forces: SpringForces::new(n, mesh.springs()),
-            force: vec![SVector::zeros(); n],
-            masses: mesh.masses().to_vec(),
-            springs: mesh.springs().to_vec(),
-            shift,
-            h: scene.time_step(),
-            y: vec![SVector::zeros(); n],
-            x: mesh.positions().to_vec(),
-            free,
-            pattern,
-        };
         let unknowns = vec![0.0; objective.dim()];
         Ok(BackwardEuler {
             solver: Solver::Newton {
@@ -190,6 +91,7 @@ impl<const D: usize> BackwardEuler<D> {
             },
             gravity: scene.forces().gravity().unwrap_or_else(SVector::zeros),
             x_start: vec![SVector::zeros(); n],
+            y: vec![SVector::zeros(); n],
         })
     }
 
@@ -211,12 +113,10 @@ impl<const D: usize> BackwardEuler<D> {
             message: e.to_string(),
         })?;
         Ok(BackwardEuler {
-            solver: Solver::Projective {
-                pd: Box::new(pd),
-                y: vec![SVector::zeros(); n],
-            },
+            solver: Solver::Projective { pd: Box::new(pd) },
             gravity: scene.forces().gravity().unwrap_or_else(SVector::zeros),
             x_start: vec![SVector::zeros(); n],
+            y: vec![SVector::zeros(); n],
         })
     }
 
@@ -245,32 +145,28 @@ impl<const D: usize> BackwardEuler<D> {
                 unknowns,
             } => {
                 for v in 0..positions.len() {
-                    objective.y[v] = target(v, &positions[v], &velocities[v]);
-                    objective.x[v] = positions[v];
+                    self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
-                for (f, &v) in objective.free.free_vertices().iter().enumerate() {
-                    unknowns[D * f..D * f + D].copy_from_slice(objective.y[v as usize].as_slice());
-                }
+                objective.set_step(&self.y, positions, unknowns);
                 let report = newton.minimize(objective.as_mut(), unknowns).map_err(|e| {
                     SimError::Solver {
                         message: e.to_string(),
                     }
                 })?;
-                objective.expand(unknowns);
-                positions.copy_from_slice(&objective.x);
+                positions.copy_from_slice(objective.positions(unknowns));
                 SolveSummary {
                     iterations: report.iterations,
                     residual: report.gradient(),
                     stop: report.stop,
                 }
             }
-            Solver::Projective { pd, y } => {
+            Solver::Projective { pd } => {
                 for v in 0..positions.len() {
-                    y[v] = target(v, &positions[v], &velocities[v]);
+                    self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
                 // x⁰ = y at free vertices; pinned vertices keep their positions (y = x there).
-                positions.copy_from_slice(y);
-                let report = pd.solve(scene.mesh().springs(), y, positions);
+                positions.copy_from_slice(&self.y);
+                let report = pd.solve(scene.mesh().springs(), &self.y, positions);
                 SolveSummary {
                     iterations: report.iterations,
                     residual: report.changes.last().copied().unwrap_or(0.0),

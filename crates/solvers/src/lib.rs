@@ -24,6 +24,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod backward_euler;
 pub mod cg;
 pub mod cholesky;
 pub mod jacobi;
@@ -32,6 +33,7 @@ pub mod operator;
 pub mod projective;
 mod report;
 
+pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};

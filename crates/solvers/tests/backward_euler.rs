@@ -1,117 +1,15 @@
 //! One backward Euler step solved two ways, projective dynamics and Newton, on hooke's own assembly:
 //! both must reach the same minimiser of Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x).
 
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use hooke_assembly::{FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces};
-use hooke_mesh::{generators, Spring, SpringMesh};
+use hooke_assembly::FreeDofs;
+use hooke_mesh::{generators, SpringMesh};
 use hooke_solvers::{
-    Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, StopReason,
+    BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    StopReason,
 };
 use nalgebra::Vector3;
 
 type V = Vector3<f64>;
-
-/// Φ over the free DOFs, with the Hessian from `HessianPattern`.
-struct Step<'a> {
-    springs: &'a [Spring],
-    masses: &'a [f64],
-    free: FreeDofs,
-    pattern: HessianPattern<3>,
-    workspace: HessianWorkspace<3>,
-    values: Vec<f64>,
-    forces: SpringForces<3>,
-    force: Vec<V>,
-    y: Vec<V>,
-    x: Vec<V>,
-    h: f64,
-    shift: Vec<f64>,
-}
-
-impl<'a> Step<'a> {
-    fn new(mesh: &'a SpringMesh<3>, pinned: &[u32], y: Vec<V>, x_pinned: Vec<V>, h: f64) -> Self {
-        let n = mesh.vertex_count();
-        let free = FreeDofs::new(n, pinned).unwrap();
-        let pattern = HessianPattern::new(n, mesh.springs(), Some(&free));
-        let shift = free
-            .free_vertices()
-            .iter()
-            .flat_map(|&v| [mesh.masses()[v as usize]; 3])
-            .collect();
-        Step {
-            springs: mesh.springs(),
-            masses: mesh.masses(),
-            workspace: pattern.workspace(),
-            values: pattern.new_values(),
-            forces: SpringForces::new(n, mesh.springs()),
-            force: vec![V::zeros(); n],
-            free,
-            pattern,
-            y,
-            x: x_pinned,
-            h,
-            shift,
-        }
-    }
-
-    fn expand(&mut self, xf: &[f64]) {
-        for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            self.x[v as usize] = V::new(xf[3 * f], xf[3 * f + 1], xf[3 * f + 2]);
-        }
-    }
-}
-
-impl NewtonProblem for Step<'_> {
-    fn dim(&self) -> usize {
-        3 * self.free.free_count()
-    }
-
-    fn objective(&mut self, xf: &[f64]) -> f64 {
-        self.expand(xf);
-        let inertia: f64 = self
-            .free
-            .free_vertices()
-            .iter()
-            .map(|&v| {
-                0.5 * self.masses[v as usize]
-                    * (self.x[v as usize] - self.y[v as usize]).norm_squared()
-            })
-            .sum();
-        inertia + self.h * self.h * hooke_assembly::spring_energy(self.springs, &self.x, false)
-    }
-
-    fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
-        self.expand(xf);
-        self.forces
-            .compute(self.springs, &self.x, None, &mut self.force, false);
-        for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            let v = v as usize;
-            let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * (self.h * self.h);
-            g[3 * f..3 * f + 3].copy_from_slice(gv.as_slice());
-        }
-    }
-
-    fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
-        self.pattern.symbolic()
-    }
-
-    fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
-        self.expand(xf);
-        self.pattern.assemble_into(
-            self.springs,
-            &self.x,
-            self.masses,
-            self.h,
-            HessianParams::default(),
-            &mut self.workspace,
-            &mut self.values,
-        );
-        self.pattern.matrix(&self.values)
-    }
-
-    fn shift_diagonal(&self) -> &[f64] {
-        &self.shift
-    }
-}
 
 /// Solve one step from rest, under gravity, both ways; return (PD result, Newton result, |x* − x_n|).
 fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
@@ -170,7 +68,9 @@ fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
         );
     }
     // Newton to a relative gradient of 1e-12.
-    let mut step = Step::new(mesh, pinned, y.clone(), x_n.clone(), h);
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
+    let mut xf = vec![0.0; step.dim()];
+    step.set_step(&y, &x_n, &mut xf);
     let mut newton = Newton::new(
         step.pattern(),
         NewtonParams {
@@ -179,11 +79,6 @@ fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
         },
     )
     .unwrap();
-    let mut xf: Vec<f64> = free
-        .free_vertices()
-        .iter()
-        .flat_map(|&v| y[v as usize].as_slice().to_vec())
-        .collect();
     let report = newton.minimize(&mut step, &mut xf).unwrap();
     eprintln!(
         "Newton: {} iterations, relative gradient {:e}, {} shifted",
@@ -199,15 +94,14 @@ fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
             || (report.stop == StopReason::Stagnated && report.gradient() <= 1e-9),
         "Newton: {report:?}"
     );
-    step.expand(&xf);
-    let motion = step
-        .x
+    let x_newton = step.positions(&xf).to_vec();
+    let motion = x_newton
         .iter()
         .zip(&x_n)
         .map(|(a, b)| (a - b).norm_squared())
         .sum::<f64>()
         .sqrt();
-    (x_pd, step.x, motion)
+    (x_pd, x_newton, motion)
 }
 
 fn assert_same(name: &str, a: &[V], b: &[V], motion: f64) {

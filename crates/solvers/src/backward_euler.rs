@@ -1,0 +1,152 @@
+//! One backward Euler step of a spring mesh as an objective for [`crate::Newton`].
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use hooke_assembly::{FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces};
+use hooke_mesh::Spring;
+use nalgebra::SVector;
+
+use crate::NewtonProblem;
+
+/// One backward Euler step as a [`NewtonProblem`]: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) over the
+/// free DOFs (D per free vertex, numbered as in [`FreeDofs`]), with the Hessian assembled by
+/// [`HessianPattern`] into a fixed pattern. Pinned vertices are held where [`BackwardEulerStep::set_step`]
+/// puts them. Every buffer is allocated here, once.
+#[derive(Debug)]
+pub struct BackwardEulerStep<const D: usize> {
+    free: FreeDofs,
+    pattern: HessianPattern<D>,
+    workspace: HessianWorkspace<D>,
+    values: Vec<f64>,
+    forces: SpringForces<D>,
+    force: Vec<SVector<f64, D>>,
+    masses: Vec<f64>,
+    springs: Vec<Spring>,
+    shift: Vec<f64>,
+    h: f64,
+    /// Inertial target per vertex.
+    y: Vec<SVector<f64, D>>,
+    /// The full positions: pinned vertices fixed, free ones overwritten from the unknowns.
+    x: Vec<SVector<f64, D>>,
+}
+
+impl<const D: usize> BackwardEulerStep<D> {
+    /// The step for `springs` and `masses` (kg, per vertex) over the free vertices of `free`, with
+    /// time step `h` (s).
+    ///
+    /// # Panics
+    /// If `masses` does not have one entry per vertex of `free`.
+    #[track_caller]
+    pub fn new(springs: &[Spring], masses: &[f64], free: FreeDofs, h: f64) -> Self {
+        let n = free.vertex_count();
+        assert_eq!(masses.len(), n, "one mass per vertex");
+        let pattern = HessianPattern::new(n, springs, Some(&free));
+        BackwardEulerStep {
+            workspace: pattern.workspace(),
+            values: pattern.new_values(),
+            forces: SpringForces::new(n, springs),
+            force: vec![SVector::zeros(); n],
+            masses: masses.to_vec(),
+            springs: springs.to_vec(),
+            shift: free
+                .free_vertices()
+                .iter()
+                .flat_map(|&v| [masses[v as usize]; D])
+                .collect(),
+            h,
+            y: vec![SVector::zeros(); n],
+            x: vec![SVector::zeros(); n],
+            free,
+            pattern,
+        }
+    }
+
+    /// Set the inertial target y (per vertex, m) and the positions (per vertex, m; the pinned ones
+    /// are held there), and write the free part of `y`, the usual initial guess, into `unknowns`.
+    ///
+    /// # Panics
+    /// On length mismatches.
+    #[track_caller]
+    pub fn set_step(
+        &mut self,
+        y: &[SVector<f64, D>],
+        positions: &[SVector<f64, D>],
+        unknowns: &mut [f64],
+    ) {
+        self.y.copy_from_slice(y);
+        self.x.copy_from_slice(positions);
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            unknowns[D * f..D * f + D].copy_from_slice(self.y[v as usize].as_slice());
+        }
+    }
+
+    /// The full positions for the unknowns `xf` (pinned vertices as set).
+    pub fn positions(&mut self, xf: &[f64]) -> &[SVector<f64, D>] {
+        self.expand(xf);
+        &self.x
+    }
+
+    /// The free-DOF map.
+    pub fn free(&self) -> &FreeDofs {
+        &self.free
+    }
+
+    fn expand(&mut self, xf: &[f64]) {
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            self.x[v as usize] = SVector::from_column_slice(&xf[D * f..D * f + D]);
+        }
+    }
+}
+
+impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
+    fn dim(&self) -> usize {
+        D * self.free.free_count()
+    }
+
+    fn objective(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        let inertia: f64 = self
+            .free
+            .free_vertices()
+            .iter()
+            .map(|&v| {
+                let v = v as usize;
+                0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
+            })
+            .sum();
+        inertia + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, true)
+    }
+
+    fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
+        self.expand(xf);
+        self.forces
+            .compute(&self.springs, &self.x, None, &mut self.force, true);
+        let h2 = self.h * self.h;
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
+            g[D * f..D * f + D].copy_from_slice(gv.as_slice());
+        }
+    }
+
+    fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        self.pattern.symbolic()
+    }
+
+    fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
+        self.expand(xf);
+        self.pattern.assemble_into(
+            &self.springs,
+            &self.x,
+            &self.masses,
+            self.h,
+            HessianParams::default(),
+            &mut self.workspace,
+            &mut self.values,
+        );
+        self.pattern.matrix(&self.values)
+    }
+
+    fn shift_diagonal(&self) -> &[f64] {
+        &self.shift
+    }
+}
