@@ -85,10 +85,25 @@ impl<const D: usize> ExternalForce<D> {
 }
 
 /// The external forces of a scene, resolved for fast evaluation.
-#[derive(Clone, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ExternalForces<const D: usize> {
     forces: Vec<ExternalForce<D>>,
     gravity: Option<SVector<f64, D>>,
+    /// "Up" (−g/|g|) and |g| (m/s²), resolved once for buoyancy; zero without gravity.
+    up: SVector<f64, D>,
+    g_norm: f64,
+}
+
+impl<const D: usize> Default for ExternalForces<D> {
+    /// No external force.
+    fn default() -> Self {
+        ExternalForces {
+            forces: Vec::new(),
+            gravity: None,
+            up: SVector::zeros(),
+            g_norm: 0.0,
+        }
+    }
 }
 
 impl<const D: usize> ExternalForces<D> {
@@ -114,7 +129,19 @@ impl<const D: usize> ExternalForces<D> {
                 "buoyancy needs gravity in the scene",
             ));
         }
-        Ok(ExternalForces { forces, gravity })
+        let g = gravity.unwrap_or_else(SVector::zeros);
+        let g_norm = g.norm();
+        let up = if g_norm > 0.0 {
+            -g / g_norm
+        } else {
+            SVector::zeros()
+        };
+        Ok(ExternalForces {
+            forces,
+            gravity,
+            up,
+            g_norm,
+        })
     }
 
     /// The forces, as given.
@@ -148,10 +175,8 @@ impl<const D: usize> ExternalForces<D> {
                     body_density,
                     surface,
                 } => {
-                    let g = self.gravity.unwrap_or_else(SVector::zeros);
-                    let up = -g.normalize();
-                    if x.dot(&up) < *surface {
-                        f -= g * (fluid_density / body_density * mass);
+                    if x.dot(&self.up) < *surface {
+                        f += self.up * (self.g_norm * fluid_density / body_density * mass);
                     }
                 }
                 ExternalForce::Attractor { point, strength } => {
@@ -175,11 +200,10 @@ impl<const D: usize> ExternalForces<D> {
                     body_density,
                     surface,
                 } => {
-                    let g = self.gravity.unwrap_or_else(SVector::zeros);
-                    let height = x.dot(&(-g.normalize()));
+                    let height = x.dot(&self.up);
                     e += fluid_density / body_density
                         * mass
-                        * g.norm()
+                        * self.g_norm
                         * (surface - height.min(*surface));
                 }
                 ExternalForce::Attractor { point, strength } => {
