@@ -9,6 +9,11 @@
 //! [`SparseColMatRef`] without copying, ready for `faer`'s sparse Cholesky (whose symbolic analysis
 //! can therefore be reused across refills).
 //!
+//! Damping (SPEC §4) adds to the same values: [`HessianPattern::add_dashpot_into`] the velocity
+//! Jacobian of the dashpot along the springs, scaled (h for backward Euler), and
+//! [`HessianPattern::add_vertex_diagonal`] a per-vertex multiple of the identity (viscous damping
+//! h·c, or masses).
+//!
 //! Pinned vertices (SPEC §3) are removed by assembling directly on the free vertices: their rows and
 //! columns never exist, a spring from a free vertex to a pinned one adds to the free vertex's
 //! diagonal block only. The result is K (M + h² ∇²E) Kᵀ, bit for bit equal to the full matrix with
@@ -272,6 +277,151 @@ impl<const D: usize> HessianPattern<D> {
         };
         graph.for_each_column::<D, _>(values, parallel, &fill);
     }
+
+    /// Add the velocity Jacobian of the dashpot damping along every spring, scaled: for each spring
+    /// s = (i, j) with B_s = `scale` · c · r̂r̂ᵀ (r = x_i − x_j at `positions`, m), add B_s to the
+    /// diagonal blocks of i and j and −B_s to the blocks (i, j) and (j, i). This is
+    /// −`scale` · ∂f_dashpot/∂v with f_i = −c ((v_i − v_j)·r̂) r̂ (SPEC §4, see
+    /// [`dashpot_velocity_block`](crate::spring::dashpot_velocity_block)): positive semidefinite for
+    /// `scale` · c ≥ 0. Backward Euler uses `scale` = h: in positions, g(x) = M (x − y) −
+    /// h² f(x, (x − x_n)/h) has the Jacobian M − h² ∂f/∂x − h ∂f/∂v, and the velocity form
+    /// M − h ∂f/∂v − h² ∂f/∂x has the same damping term.
+    ///
+    /// Units: `coefficient` c in N·s/m, `scale` in s to add to a matrix in kg (N·s²/m), or 1 for the
+    /// damping matrix itself (N·s/m).
+    ///
+    /// Only the free DOFs are touched: a spring from a free vertex to a pinned one adds B_s to the
+    /// free vertex's diagonal block (its velocity derivative with respect to the free end), and
+    /// nothing else, so the result is K (A + `scale` · C) Kᵀ for the full damping matrix C, as for
+    /// [`HessianPattern::assemble_into`]. A spring of zero length has no direction and adds nothing
+    /// (as [`dashpot_force`](crate::spring::dashpot_force) is zero there).
+    ///
+    /// Invariants kept: the sums are in increasing spring order per block, the same for (v, w) and
+    /// (w, v), so an exactly symmetric `values` stays exactly symmetric, and serial and parallel
+    /// runs (chosen by size, as in `assemble_into`) give the same bits. No allocation.
+    ///
+    /// # Panics
+    /// If the number of springs, positions (one per vertex of the full mesh) or values does not
+    /// match the pattern (in debug builds also if a spring's ends changed).
+    #[track_caller]
+    pub fn add_dashpot_into(
+        &self,
+        springs: &[Spring],
+        positions: &[SVector<f64, D>],
+        coefficient: f64,
+        scale: f64,
+        values: &mut [f64],
+    ) {
+        let free = self.graph.free();
+        assert_eq!(
+            springs.len(),
+            self.graph.spring_count(),
+            "add_dashpot_into: the springs are not those of the pattern"
+        );
+        assert_eq!(
+            positions.len(),
+            free.vertex_count(),
+            "add_dashpot_into: one position per vertex"
+        );
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "add_dashpot_into: one value per stored entry"
+        );
+        let factor = scale * coefficient;
+        let graph = &self.graph;
+        let fill = |column: usize, out: &mut [f64]| {
+            let column_len = D * graph.column_blocks(column).len();
+            let mut sum = [0.0; PACKED];
+            for c in graph.contributions(column) {
+                let spring = &springs[c.spring as usize];
+                let (i, j) = spring.ends();
+                debug_assert!(
+                    {
+                        let vertex = free.free_vertices()[column] as usize;
+                        i == vertex || j == vertex
+                    },
+                    "spring {} moved",
+                    c.spring
+                );
+                // The block is computed by each end (no workspace): the same bits both times.
+                let packed = dashpot_block::<D>(&(positions[i] - positions[j]), factor);
+                for (acc, v) in sum.iter_mut().zip(&packed).take(PACKED_LEN[D]) {
+                    *acc += v;
+                }
+                if c.slot != Contribution::PINNED_OTHER {
+                    let at = D * c.slot as usize;
+                    for b in 0..D {
+                        let dst = &mut out[b * column_len + at..][..D];
+                        for (a, d) in dst.iter_mut().enumerate() {
+                            *d -= packed[packed_index::<D>(a, b)];
+                        }
+                    }
+                }
+            }
+            let at = D * graph.diagonal_slot(column);
+            for b in 0..D {
+                let dst = &mut out[b * column_len + at..][..D];
+                for (a, d) in dst.iter_mut().enumerate() {
+                    *d += sum[packed_index::<D>(a, b)];
+                }
+            }
+        };
+        let parallel = springs.len() >= PARALLEL_THRESHOLD;
+        graph.for_each_column::<D, _>(values, parallel, &fill);
+    }
+
+    /// Add `per_vertex[v]` · I_D to the diagonal block of every free vertex v (`per_vertex` is
+    /// indexed by full vertex index; the entries of pinned vertices are not read). For viscous
+    /// damping f = −c v this adds `scale` · c per vertex (c in N·s/m, e.g. h · c in kg for backward
+    /// Euler in positions), and for lumped masses m_v (kg). A diagonal added to an exactly
+    /// symmetric `values` keeps it exactly symmetric; no allocation; the same bits serial or
+    /// parallel (one addition per entry).
+    ///
+    /// # Panics
+    /// If `per_vertex` does not have one entry per vertex of the full mesh, or `values` one per
+    /// stored entry.
+    #[track_caller]
+    pub fn add_vertex_diagonal(&self, per_vertex: &[f64], values: &mut [f64]) {
+        let free = self.graph.free();
+        assert_eq!(
+            per_vertex.len(),
+            free.vertex_count(),
+            "add_vertex_diagonal: one value per vertex"
+        );
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "add_vertex_diagonal: one value per stored entry"
+        );
+        let graph = &self.graph;
+        let fill = |column: usize, out: &mut [f64]| {
+            let column_len = D * graph.column_blocks(column).len();
+            let at = D * graph.diagonal_slot(column);
+            let add = per_vertex[free.free_vertices()[column] as usize];
+            for b in 0..D {
+                out[b * column_len + at + b] += add;
+            }
+        };
+        // One cache line per scalar column is touched, spread over the whole array: worth two
+        // threads on large meshes.
+        let parallel = graph.spring_count().max(graph.columns()) >= PARALLEL_THRESHOLD;
+        graph.for_each_column::<D, _>(values, parallel, &fill);
+    }
+}
+
+/// `factor` · r̂r̂ᵀ (packed upper triangle), zero where r has no direction.
+#[inline]
+fn dashpot_block<const D: usize>(r: &SVector<f64, D>, factor: f64) -> [f64; PACKED] {
+    let mut packed = [0.0; PACKED];
+    if let Some((unit, _)) = crate::spring::direction(r) {
+        for b in 0..D {
+            for a in 0..=b {
+                packed[packed_index::<D>(a, b)] = factor * (unit[a] * unit[b]);
+            }
+        }
+    }
+    packed
 }
 
 /// Scratch memory of [`HessianPattern::assemble_into`]: room for −h² H_s of every spring (packed
@@ -664,6 +814,197 @@ mod tests {
             .iter()
             .zip(&parallel)
             .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
+    /// The full (3n × 3n) damping matrix C = −∂f_dashpot/∂v built densely from the per-spring
+    /// blocks [`dashpot_velocity_block`](crate::spring::dashpot_velocity_block), in spring order.
+    fn dense_dashpot_matrix(mesh: &SpringMesh<3>, x: &[Vector3<f64>], c: f64) -> DMatrix<f64> {
+        let n = mesh.vertex_count();
+        let mut out = DMatrix::zeros(3 * n, 3 * n);
+        for s in mesh.springs() {
+            let (i, j) = s.ends();
+            // ∂f_i/∂v_i = −c r̂r̂ᵀ, ∂f_i/∂v_j = +c r̂r̂ᵀ; C is minus those.
+            let block = crate::spring::dashpot_velocity_block(c, &(x[i] - x[j]));
+            for (r, col, sign) in [(i, i, -1.0), (j, j, -1.0), (i, j, 1.0), (j, i, 1.0)] {
+                for b in 0..3 {
+                    for a in 0..3 {
+                        out[(3 * r + a, 3 * col + b)] += sign * block[(a, b)];
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The rows and columns of the free vertices of a full per-DOF matrix.
+    fn free_part(full: &DMatrix<f64>, free: &FreeDofs) -> DMatrix<f64> {
+        let nf = free.free_count();
+        DMatrix::from_fn(3 * nf, 3 * nf, |r, c| {
+            let (v, w) = (
+                free.free_vertices()[r / 3] as usize,
+                free.free_vertices()[c / 3] as usize,
+            );
+            full[(3 * v + r % 3, 3 * w + c % 3)]
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        #[test]
+        fn dashpot_jacobian_is_the_sum_of_the_spring_blocks(
+            (mesh, x, pinned) in mesh_state_pins(),
+            c in 1e-3f64..1e3,
+        ) {
+            let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+            let pattern = HessianPattern::<3>::new(mesh.vertex_count(), mesh.springs(), Some(&free));
+            let mut values = pattern.new_values();
+            pattern.add_dashpot_into(mesh.springs(), &x, c, 1.0, &mut values);
+            let assembled = dense(pattern.matrix(&values));
+            // Same products, summed from zero in the same (spring) order: equal, not merely close.
+            // (Pinned rows and columns are absent from the pattern: `free_part` drops them.)
+            let reference = free_part(&dense_dashpot_matrix(&mesh, &x, c), &free);
+            prop_assert_eq!(&assembled, &reference);
+            assert_exactly_symmetric(&assembled);
+            // Positive semidefinite: the eigenvalues of the symmetric matrix are computed to a few ε
+            // times its norm, so none may be below −1e-12 ‖C‖.
+            let norm = assembled.amax() * assembled.nrows() as f64;
+            let smallest = assembled.clone().symmetric_eigen().eigenvalues.min();
+            prop_assert!(smallest >= -1e-12 * norm.max(f64::MIN_POSITIVE), "λ_min = {} (‖C‖ ≤ {})", smallest, norm);
+        }
+
+        #[test]
+        fn dashpot_jacobian_adds_to_the_hessian_scaled(
+            (mesh, x, pinned) in mesh_state_pins(),
+            scale in 1e-3f64..1.0,
+        ) {
+            let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+            let (pattern, mut values) = assemble(&mesh, &x, Some(&free), mesh.masses(), 0.05, Definiteness::Exact);
+            let before = dense(pattern.matrix(&values));
+            let c = 2.5;
+            pattern.add_dashpot_into(mesh.springs(), &x, c, scale, &mut values);
+            let after = dense(pattern.matrix(&values));
+            assert_exactly_symmetric(&after);
+            let damping = free_part(&dense_dashpot_matrix(&mesh, &x, c), &free) * scale;
+            // The same terms summed in another association: a few ε of the largest term per entry.
+            let bound = 1e-14 * (before.amax() + damping.amax());
+            let error = (&after - &before - &damping).amax();
+            prop_assert!(error <= bound, "off by {} (bound {})", error, bound);
+        }
+    }
+
+    #[test]
+    fn dashpot_jacobian_matches_finite_differences_of_the_dashpot_force() {
+        // −∂/∂v of the summed dashpot force (through `SpringForces`, the simulation's force path) on
+        // the free DOFs, pinned velocities held, on a cloth with two pins and a tetrahedral beam.
+        for (mesh, pinned) in [
+            (cloth(6, 50.0).unwrap(), vec![0, 5]),
+            (beam(1).unwrap(), vec![0, 1, 2, 3]),
+        ] {
+            let n = mesh.vertex_count();
+            let x = wobble(mesh.positions(), 0.3 * min_rest_length(&mesh));
+            let v: Vec<Vector3<f64>> = wobble(&vec![Vector3::zeros(); n], 1.0);
+            let free = FreeDofs::new(n, &pinned).unwrap();
+            let pattern = HessianPattern::<3>::new(n, mesh.springs(), Some(&free));
+            let c = 0.7;
+            let mut values = pattern.new_values();
+            pattern.add_dashpot_into(mesh.springs(), &x, c, 1.0, &mut values);
+            let assembled = dense(pattern.matrix(&values));
+            let mut flat = Vec::new();
+            for &w in free.free_vertices() {
+                flat.extend_from_slice(v[w as usize].as_slice());
+            }
+            let forces = SpringForces::new(n, mesh.springs());
+            let jac = fd::jacobian(
+                |u, out| {
+                    let mut full = v.clone();
+                    let moved: Vec<_> = u.chunks_exact(3).map(Vector3::from_column_slice).collect();
+                    free.expand_vector(&moved, &mut full);
+                    let mut f = vec![Vector3::zeros(); n];
+                    let dashpot = Some(crate::Dashpot {
+                        coefficient: c,
+                        velocities: &full,
+                    });
+                    forces
+                        .clone()
+                        .compute(mesh.springs(), &x, dashpot, &mut f, false);
+                    let mut reduced = vec![Vector3::zeros(); free.free_count()];
+                    free.reduce_vector(&f, &mut reduced);
+                    for (o, r) in out.chunks_exact_mut(3).zip(&reduced) {
+                        o.copy_from_slice(r.as_slice());
+                    }
+                },
+                &flat,
+                flat.len(),
+                1e-3,
+            );
+            // The force is linear in v: central differences are exact but for round-off, about
+            // ε · |f| / step with |f| ≲ (spring force + c · |v| · degree) ~ 1e2: ~1e-11. The
+            // tolerance, 1e-8 of the largest entry c, is far above that and far below any real error.
+            let error = (&assembled + &jac).amax();
+            assert!(
+                error <= 1e-8 * assembled.amax(),
+                "C differs from −∂f/∂v by {error} (largest entry {})",
+                assembled.amax()
+            );
+        }
+    }
+
+    #[test]
+    fn dashpot_and_diagonal_are_the_same_bits_on_one_and_two_threads() {
+        // cloth-100 (58,806 springs) is above the parallel threshold.
+        let mesh = cloth(100, 1e3).unwrap();
+        let x = wobble(mesh.positions(), 0.002);
+        let free = FreeDofs::new(mesh.vertex_count(), &[0, 99]).unwrap();
+        let pattern = HessianPattern::<3>::new(mesh.vertex_count(), mesh.springs(), Some(&free));
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut values = pattern.new_values();
+                pattern.assemble_into(
+                    mesh.springs(),
+                    &x,
+                    mesh.masses(),
+                    0.01,
+                    HessianParams::default(),
+                    &mut pattern.workspace(),
+                    &mut values,
+                );
+                pattern.add_dashpot_into(mesh.springs(), &x, 0.3, 0.01, &mut values);
+                pattern.add_vertex_diagonal(mesh.masses(), &mut values);
+                values
+            })
+        };
+        let (one, two) = (run(1), run(2));
+        assert!(one
+            .iter()
+            .zip(&two)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
+    #[test]
+    fn vertex_diagonal_adds_to_free_diagonal_blocks_only() {
+        let mesh = beam(1).unwrap();
+        let n = mesh.vertex_count();
+        let free = FreeDofs::new(n, &[1, 4]).unwrap();
+        let pattern = HessianPattern::<3>::new(n, mesh.springs(), Some(&free));
+        let per_vertex: Vec<f64> = (0..n).map(|v| 1.0 + v as f64).collect();
+        let mut values = pattern.new_values();
+        pattern.add_vertex_diagonal(&per_vertex, &mut values);
+        let got = dense(pattern.matrix(&values));
+        let want = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+            3 * free.free_count(),
+            free.free_vertices()
+                .iter()
+                .flat_map(|&v| [per_vertex[v as usize]; 3]),
+        ));
+        assert_eq!(got, want);
+        // Added, not written: a second call doubles the diagonal.
+        pattern.add_vertex_diagonal(&per_vertex, &mut values);
+        assert_eq!(dense(pattern.matrix(&values)), want * 2.0);
     }
 
     #[test]
