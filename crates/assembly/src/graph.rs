@@ -237,6 +237,12 @@ impl BlockGraph {
         self.block_offsets[column]..self.block_offsets[column + 1]
     }
 
+    /// The free block-row indices of the blocks of column `column`, sorted.
+    #[inline]
+    pub fn block_rows(&self, column: usize) -> &[u32] {
+        &self.block_rows[self.column_blocks(column)]
+    }
+
     #[inline]
     pub fn diagonal_slot(&self, column: usize) -> usize {
         self.diagonal_slot[column] as usize

@@ -109,6 +109,11 @@ impl<const D: usize> HessianPattern<D> {
         self.graph.spring_count()
     }
 
+    /// The block structure (for the other assembly modules).
+    pub(crate) fn graph(&self) -> &BlockGraph {
+        &self.graph
+    }
+
     /// The symbolic CSC structure (for a reusable symbolic Cholesky factorisation).
     pub fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
         self.symbolic.as_ref()

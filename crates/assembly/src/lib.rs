@@ -4,13 +4,15 @@
 //! forces and their derivatives ([`spring`]), their sums over a mesh ([`forces`]), parallel and
 //! deterministic, the sparse Hessian of the implicit Euler objective in faer's CSC format with a
 //! fixed pattern refilled in place ([`hessian`]), the fixed-vertex reduction ([`FreeDofs`]), the
-//! projective dynamics matrices with their Kronecker structure kept ([`pd`]), and central finite
-//! differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
+//! projective dynamics matrices with their Kronecker structure kept ([`pd`]), pinned vertices held
+//! by counter-forces on all DOFs instead ([`CounterForce`]), and central finite differences to check
+//! them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
 //! `interop` converts the assembled matrices to those crates' CSC types.
 //!
 //! Units: metres, kilograms, seconds; stiffness in N/m, energy in J, force in N.
 #![deny(missing_docs)]
 
+mod counter_force;
 mod dofs;
 mod error;
 pub mod fd;
@@ -22,6 +24,7 @@ pub mod interop;
 pub mod pd;
 pub mod spring;
 
+pub use counter_force::CounterForce;
 pub use dofs::FreeDofs;
 pub use error::AssemblyError;
 pub use hessian::{HessianParams, HessianPattern, HessianWorkspace};
