@@ -11,12 +11,13 @@ use hooke::mesh::io::{save_obj, save_vtk, Frame};
 use hooke::mesh::MeshError;
 use hooke::sim::file::{load_scene, FrameFormat, SceneFileError};
 use hooke::sim::scenes::{self, AnySetup, Setup};
-use hooke::sim::{Integrator, SimError, Simulation};
+use hooke::sim::{Integrator, LinearSolver, SimError, Simulation, SolverOptions};
+use hooke::solvers::StopReason;
 use nalgebra::SVector;
 
 use output::{
     progress_bar, render_preview, write_summary, OutputError, PreviewInput, PreviewPositions,
-    RunSummary, StepRecord,
+    RunSummary, SolverSettingsRecord, StepRecord,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -46,9 +47,28 @@ struct RunArgs {
     /// A built-in scene name (see `hooke scenes`) or a scene file (.toml).
     #[arg(default_value = DEFAULT_SCENE)]
     scene: String,
-    /// Time integrator: explicit-euler, symplectic-euler, newton (backward Euler) or pd (projective dynamics).
-    #[arg(long)]
+    /// Time integrator: explicit-euler, symplectic-euler, linearized (linearised implicit Euler, β
+    /// family), newton (backward Euler by Newton) or pd (backward Euler by projective dynamics).
+    /// Default: the scene's.
+    #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
+    /// β of the linearized integrator, in [0, 1]: 0 explicit, 0.5 midpoint-like, 1 linearised
+    /// backward Euler (default 1).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    beta: Option<f64>,
+    /// Linear solver of the linearized integrator: jacobi or cg (conjugate gradient with a
+    /// block-Jacobi preconditioner; default).
+    #[arg(long, value_name = "NAME")]
+    linear_solver: Option<String>,
+    /// Solver iterations: the linear solver's limit (linearized, default 1000), Newton's iteration
+    /// limit (newton, default 50), iterations per step (pd, default 10).
+    #[arg(long, value_name = "K")]
+    iterations: Option<usize>,
+    /// Relative tolerance, > 0: the linear solver's residual (linearized, default 1e-8), Newton's
+    /// gradient (newton, default 1e-8), PD's position change per iteration (pd, default: none,
+    /// run all iterations).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    tolerance: Option<f64>,
     /// Number of frames to run (default: the scene's).
     #[arg(long)]
     steps: Option<usize>,
@@ -163,6 +183,55 @@ fn run_setup<const D: usize>(
             reason: e.to_string(),
         })?;
     }
+    let linear_solver = match &args.linear_solver {
+        Some(name) => Some(
+            name.parse::<LinearSolver>()
+                .map_err(|e| CliError::Argument {
+                    name: "linear-solver",
+                    reason: e.to_string(),
+                })?,
+        ),
+        None => None,
+    };
+    // One flag at a time, so that an error names its flag.
+    for (name, options) in [
+        (
+            "beta",
+            SolverOptions {
+                beta: args.beta,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "linear-solver",
+            SolverOptions {
+                linear_solver,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "iterations",
+            SolverOptions {
+                iterations: args.iterations,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "tolerance",
+            SolverOptions {
+                tolerance: args.tolerance,
+                ..SolverOptions::default()
+            },
+        ),
+    ] {
+        setup
+            .settings
+            .apply_options(&options)
+            .map_err(|e| CliError::Argument {
+                name,
+                reason: e.to_string(),
+            })?;
+    }
     if let Some(dt) = args.dt {
         setup.scene = setup.scene.with_time_step(dt)?;
     }
@@ -223,6 +292,15 @@ fn run_setup<const D: usize>(
         springs: mesh.springs().len(),
         time_step: sim.scene().time_step(),
         substeps: sim.substeps(),
+        solver_settings: {
+            let o = settings.solver_options();
+            (o != SolverOptions::default()).then(|| SolverSettingsRecord {
+                beta: o.beta,
+                linear_solver: o.linear_solver.map(|s| s.name().to_string()),
+                iterations: o.iterations,
+                tolerance: o.tolerance,
+            })
+        },
         steps: Vec::with_capacity(steps + 1),
     };
     let record = |step: usize, sim: &Simulation<D>, report: Option<hooke::sim::StepReport>| {
@@ -236,6 +314,10 @@ fn run_setup<const D: usize>(
             max_stretch: sim.scene().max_stretch(sim.state()),
             solver_iterations: report.and_then(|r| r.solver).map(|s| s.iterations),
             solver_residual: report.and_then(|r| r.solver).map(|s| s.residual),
+            solver_stop: report
+                .and_then(|r| r.solver)
+                .map(|s| stop_name(s.stop).to_string()),
+            clamped_hessian: report.is_some_and(|r| r.clamped_hessian),
             wall_time_s: report.map_or(0.0, |r| r.wall_time.as_secs_f64()),
         }
     };
@@ -267,6 +349,24 @@ fn run_setup<const D: usize>(
         }
     }
     progress.finish_and_clear();
+    let unconverged = summary
+        .steps
+        .iter()
+        .filter(|r| r.solver_stop.as_deref() == Some("iteration-limit"))
+        .count();
+    if unconverged > 0 && settings.integrator != Integrator::ProjectiveDynamics {
+        eprintln!(
+            "warning: the solver stopped at its iteration limit, short of its tolerance, in \
+             {unconverged} step(s) (see solver_stop in summary.json)"
+        );
+    }
+    let clamped = summary.steps.iter().filter(|r| r.clamped_hessian).count();
+    if clamped > 0 {
+        eprintln!(
+            "note: {clamped} step(s) used the clamped spring Hessian: the exact one gave a system \
+             that is not positive definite"
+        );
+    }
     // The summary is written even after a failure, so that the steps before it can be inspected.
     write_summary(&args.out.join("summary.json"), &summary)?;
     if let Some(e) = failure {
@@ -298,6 +398,15 @@ fn run_setup<const D: usize>(
         steps + 1
     );
     Ok(())
+}
+
+fn stop_name(stop: StopReason) -> &'static str {
+    match stop {
+        StopReason::Converged => "converged",
+        StopReason::IterationLimit => "iteration-limit",
+        StopReason::Stagnated => "stagnated",
+        _ => "other",
+    }
 }
 
 /// Remove frame files of an earlier run, so that the directory holds exactly this run's frames.

@@ -31,8 +31,29 @@ pub struct RunSummary {
     pub time_step: f64,
     /// Number of substeps per step (1 when steps are not split).
     pub substeps: usize,
+    /// The settings of the integrator's solver (absent for explicit integrators and in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver_settings: Option<SolverSettingsRecord>,
     /// One record per step, in order.
     pub steps: Vec<StepRecord>,
+}
+
+/// How the integrator's solver was set up; each entry is absent where the integrator has no such
+/// setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct SolverSettingsRecord {
+    /// β of the linearised integrator, in [0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// The linearised integrator's linear solver: `jacobi` or `cg`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub linear_solver: Option<String>,
+    /// Iteration limit (linear solver, Newton) or iterations per step (projective dynamics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// Relative tolerance (linear residual, Newton gradient, PD position change).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
 }
 
 /// The state after one step and what the step cost.
@@ -62,6 +83,14 @@ pub struct StepRecord {
     /// The solver's final residual as it reports it (its own norm and scaling); `None` for
     /// explicit integrators.
     pub solver_residual: Option<f64>,
+    /// Why the solver stopped: `converged`, `iteration-limit` or `stagnated`; `None` for explicit
+    /// integrators. A linear solve that stopped at its limit is kept and marked so here.
+    #[serde(default)]
+    pub solver_stop: Option<String>,
+    /// The linearised integrator solved this step with the clamped Hessian because the exact one
+    /// gave a system that is not positive definite.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub clamped_hessian: bool,
     /// Wall-clock time spent on the step, in seconds (s).
     #[serde(deserialize_with = "f64_or_nan")]
     pub wall_time_s: f64,
@@ -121,6 +150,11 @@ mod tests {
             springs: 502,
             time_step: 1.0 / 30.0,
             substeps: 1,
+            solver_settings: Some(SolverSettingsRecord {
+                iterations: Some(50),
+                tolerance: Some(1e-8),
+                ..Default::default()
+            }),
             steps: vec![
                 StepRecord {
                     step: 1,
@@ -131,6 +165,8 @@ mod tests {
                     max_stretch: 1.0625,
                     solver_iterations: Some(7),
                     solver_residual: Some(3.5e-11),
+                    solver_stop: Some("converged".into()),
+                    clamped_hessian: true,
                     wall_time_s: 0.0042,
                 },
                 StepRecord {
@@ -142,6 +178,8 @@ mod tests {
                     max_stretch: 1.1,
                     solver_iterations: None,
                     solver_residual: None,
+                    solver_stop: None,
+                    clamped_hessian: false,
                     wall_time_s: 1e-3,
                 },
             ],

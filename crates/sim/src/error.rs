@@ -87,6 +87,19 @@ pub enum SimError {
         /// What the solver reported.
         message: String,
     },
+    /// The linear solve of a linearised implicit Euler step failed: the system is not positive
+    /// definite, Jacobi diverged, or NaN appeared. (A solve that merely reaches its iteration limit is
+    /// not an error: the step's report says [`hooke_solvers::StopReason::IterationLimit`].)
+    #[error("step {step}: the {solver} solve of the linearized system failed: {source}")]
+    LinearSolve {
+        /// The step (1-based) during which it happened.
+        step: usize,
+        /// The linear solver (`jacobi` or `cg`).
+        solver: &'static str,
+        /// The solver's error, with its report.
+        #[source]
+        source: hooke_solvers::SolveError,
+    },
     /// The state became NaN or infinite.
     #[error("step {step}: vertex {vertex} has a non-finite {quantity}; the simulation diverged")]
     NonFinite {

@@ -14,6 +14,10 @@
 //!
 //! [pins]
 //! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
+//! # [[pins.path]]          # pinned vertices that follow a prescribed path (repeatable)
+//! # vertices = [0, 39]     # or region = { min = [..], max = [..] }
+//! # velocity = [0.5, 0.0, 0.0]              # m/s, constant; or keyframes of the displacement (m),
+//! # keyframes = [{ time = 0.0, offset = [0.0, 0.0, 0.0] }, { time = 1.0, offset = [0.5, 0.0, 0.0] }]
 //!
 //! [forces]
 //! gravity = [0.0, -9.81, 0.0]                           # m/s²
@@ -33,10 +37,14 @@
 //! # friction = 0.0
 //!
 //! [integrator]
-//! method = "symplectic-euler"
+//! method = "symplectic-euler"  # or "explicit-euler", "linearized", "newton", "pd"
 //! time_step = 0.03333333333333333   # s, one frame
-//! # substeps = 10          # default: automatic, from the stability bound
-//! # allow_unstable = false
+//! # substeps = 10          # explicit methods; default: automatic, from the stability bound
+//! # allow_unstable = false # explicit methods
+//! # beta = 1.0             # linearized: β in [0, 1]
+//! # linear_solver = "cg"   # linearized: "cg" or "jacobi"
+//! # iterations = 1000      # linearized: linear solver limit; newton: iteration limit; pd: iterations
+//! # tolerance = 1e-8       # linearized: relative residual; newton: relative gradient; pd: change
 //!
 //! [run]
 //! steps = 30
@@ -58,8 +66,8 @@ use serde::Deserialize;
 use crate::contact::{Contact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
-use crate::integrator::{Integrator, Settings};
-use crate::scene::{Pins, Scene};
+use crate::integrator::{Integrator, LinearSolver, Settings, SolverOptions};
+use crate::scene::{Keyframe, PinPath, Pins, Scene};
 use crate::scenes::{AnySetup, Setup};
 use crate::SimError;
 
@@ -166,6 +174,25 @@ struct PinsSection {
     #[serde(default)]
     vertices: Vec<u32>,
     region: Option<RegionSection>,
+    #[serde(default)]
+    path: Vec<PathSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathSection {
+    #[serde(default)]
+    vertices: Vec<u32>,
+    region: Option<RegionSection>,
+    velocity: Option<Vec<f64>>,
+    keyframes: Option<Vec<KeyframeSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeyframeSection {
+    time: f64,
+    offset: Vec<f64>,
 }
 
 #[derive(Deserialize)]
@@ -248,6 +275,10 @@ struct IntegratorSection {
     substeps: Option<usize>,
     #[serde(default)]
     allow_unstable: bool,
+    beta: Option<f64>,
+    linear_solver: Option<String>,
+    iterations: Option<usize>,
+    tolerance: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -458,6 +489,54 @@ impl Context<'_> {
                 pins.extend_from_slice(in_region.pinned());
                 scene = scene.with_pins(Pins::Vertices(pins)).map_err(sim("pins"))?;
             }
+            for (index, path) in p.path.iter().enumerate() {
+                let key = |field: &str| format!("pins.path[{index}]{field}");
+                let invalid = |field: &str, e: SimError| self.invalid(&key(field), e);
+                let pins = match (&path.region, path.vertices.is_empty()) {
+                    (None, true) => {
+                        return Err(self.invalid(&key(""), "give `vertices` or `region`"))
+                    }
+                    (Some(_), false) => {
+                        return Err(
+                            self.invalid(&key(""), "give either `vertices` or `region`, not both")
+                        )
+                    }
+                    (None, false) => Pins::Vertices(path.vertices.clone()),
+                    (Some(region), true) => Pins::Region {
+                        min: self.vector::<D>(&key(".region.min"), &region.min)?,
+                        max: self.vector::<D>(&key(".region.max"), &region.max)?,
+                    },
+                };
+                let motion = match (&path.velocity, &path.keyframes) {
+                    (Some(velocity), None) => PinPath::ConstantVelocity {
+                        velocity: self.vector(&key(".velocity"), velocity)?,
+                    },
+                    (None, Some(keys)) => PinPath::Keyframes(
+                        keys.iter()
+                            .enumerate()
+                            .map(|(k, f)| {
+                                Ok(Keyframe {
+                                    time: f.time,
+                                    offset: self.vector(
+                                        &key(&format!(".keyframes[{k}].offset")),
+                                        &f.offset,
+                                    )?,
+                                })
+                            })
+                            .collect::<Result<_, SceneFileError>>()?,
+                    ),
+                    _ => {
+                        return Err(self.invalid(
+                            &key(""),
+                            "give exactly one of `velocity` (m/s) or `keyframes` \
+                             ([{ time = s, offset = [m, ..] }, ..])",
+                        ))
+                    }
+                };
+                scene = scene
+                    .with_pin_path(pins, motion)
+                    .map_err(|e| invalid("", e))?;
+            }
         }
         let f = &doc.forces;
         let mut forces = Vec::new();
@@ -545,12 +624,54 @@ impl Context<'_> {
         if doc.run.steps == 0 {
             return Err(self.invalid("run.steps", "must be at least 1"));
         }
-        let settings = Settings {
+        let mut settings = Settings {
             integrator,
             substeps: i.substeps,
             allow_unstable: i.allow_unstable,
             ..Settings::default()
         };
+        let linear_solver = match &i.linear_solver {
+            Some(name) => Some(
+                name.parse::<LinearSolver>()
+                    .map_err(|e| self.invalid("integrator.linear_solver", e))?,
+            ),
+            None => None,
+        };
+        // One option at a time, so that an error names its key.
+        for (key, options) in [
+            (
+                "integrator.beta",
+                SolverOptions {
+                    beta: i.beta,
+                    ..SolverOptions::default()
+                },
+            ),
+            (
+                "integrator.linear_solver",
+                SolverOptions {
+                    linear_solver,
+                    ..SolverOptions::default()
+                },
+            ),
+            (
+                "integrator.iterations",
+                SolverOptions {
+                    iterations: i.iterations,
+                    ..SolverOptions::default()
+                },
+            ),
+            (
+                "integrator.tolerance",
+                SolverOptions {
+                    tolerance: i.tolerance,
+                    ..SolverOptions::default()
+                },
+            ),
+        ] {
+            settings
+                .apply_options(&options)
+                .map_err(|e| self.invalid(key, e))?;
+        }
         Ok(Setup {
             name,
             initial: scene.initial_state(),

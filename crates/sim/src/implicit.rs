@@ -6,7 +6,9 @@
 //! - gravity: a constant force, folded into y (exact for both solvers);
 //! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve (as in the explicit integrators);
 //! - contact: a projection of x⁺ and v⁺ after the solve (pinned vertices untouched);
-//! - pins: removed from the unknowns (SPEC §3 reduction), held at their positions.
+//! - pins: removed from the unknowns (SPEC §3 reduction), held at their positions, or at the end of
+//!   the step moved to where their prescribed path is at t + h (the right-hand side changes, the
+//!   matrices do not: PD's factorisation and Newton's symbolic analysis are kept).
 //!
 //! Wind, buoyancy, the attractor and viscous or dashpot damping are not yet part of the implicit
 //! solve; a scene that asks for them is refused with [`SimError::Unsupported`] rather than run with
@@ -95,6 +97,15 @@ impl<const D: usize> BackwardEuler<D> {
         })
     }
 
+    /// Time of projective dynamics' last factorisation (it factors once, in
+    /// [`BackwardEuler::projective`]); `None` for Newton.
+    pub(crate) fn factor_time(&self) -> Option<std::time::Duration> {
+        match &self.solver {
+            Solver::Projective { pd } => Some(pd.factor_time()),
+            Solver::Newton { .. } => None,
+        }
+    }
+
     /// Projective dynamics on Φ (the matrix is factored here, once).
     pub(crate) fn projective(scene: &Scene<D>, params: PdParams) -> Result<Self, SimError> {
         check_supported(scene, "pd")?;
@@ -121,16 +132,21 @@ impl<const D: usize> BackwardEuler<D> {
     }
 
     /// One step: positions and velocities of the free vertices are updated in place; pinned ones
-    /// keep their positions and get zero velocity. Returns the solver's summary.
+    /// move to `next_pinned` (full numbering; free entries are not read) with the velocity of that
+    /// move. Returns the solver's summary.
     pub(crate) fn step(
         &mut self,
         scene: &Scene<D>,
         positions: &mut [SVector<f64, D>],
         velocities: &mut [SVector<f64, D>],
+        next_pinned: &[SVector<f64, D>],
     ) -> Result<SolveSummary, SimError> {
         let h = scene.time_step();
         let pinned = scene.is_pinned();
         self.x_start.copy_from_slice(positions);
+        for &v in scene.pinned() {
+            positions[v as usize] = next_pinned[v as usize];
+        }
         let target = |v: usize, x: &SVector<f64, D>, vel: &SVector<f64, D>| {
             if pinned[v] {
                 *x
@@ -177,7 +193,7 @@ impl<const D: usize> BackwardEuler<D> {
         let drag = (-h * scene.damping().drag).exp();
         for v in 0..positions.len() {
             if pinned[v] {
-                velocities[v] = SVector::zeros();
+                velocities[v] = (positions[v] - self.x_start[v]) / h;
                 continue;
             }
             velocities[v] = (positions[v] - self.x_start[v]) / h * drag;

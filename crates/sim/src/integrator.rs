@@ -1,7 +1,16 @@
 //! Time integrators and their settings.
+//!
+//! [`Settings`] holds the method and every solver's parameters. [`SolverOptions`] is the
+//! method-independent way to set them (β, the linear solver, an iteration count, a tolerance): the
+//! scene file's `[integrator]` section and `hooke run`'s flags both go through
+//! [`Settings::apply_options`], so the same words give the same settings.
 
 use std::fmt;
 use std::str::FromStr;
+
+use hooke_assembly::Definiteness;
+
+use crate::SimError;
 
 /// A time integration method (SPEC §2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -13,6 +22,12 @@ pub enum Integrator {
     /// Symplectic (semi-implicit) Euler, seed 004's order: v⁺ = v + h M⁻¹ f(x, v), drag,
     /// x⁺ = x + h v⁺, contact. Stable below the step bound; energy oscillates but does not drift.
     SymplecticEuler,
+    /// Linearised implicit Euler of the β family (seeds 000 and 004):
+    /// [M − β h² ∂f/∂x(x)] v⁺ = M v + h f(x), x⁺ = x + h v⁺, one sparse linear solve per step by
+    /// Jacobi or conjugate gradient, with [`Settings::linearized`]'s parameters. β = 1 is one Newton
+    /// step of backward Euler from x_n. See the `linearized` module docs for how each scene term
+    /// enters.
+    Linearized,
     /// Backward Euler solved by Newton's method (seed 003) to [`Settings::newton`]'s tolerance.
     /// Unconditionally stable; dissipates energy.
     Newton,
@@ -23,14 +38,21 @@ pub enum Integrator {
 
 impl Integrator {
     /// Every integrator, in the order the command lists them.
-    pub const ALL: &'static [Integrator] =
-        &[Integrator::ExplicitEuler, Integrator::SymplecticEuler];
+    pub const ALL: &'static [Integrator] = &[
+        Integrator::ExplicitEuler,
+        Integrator::SymplecticEuler,
+        Integrator::Linearized,
+        Integrator::Newton,
+        Integrator::ProjectiveDynamics,
+    ];
 
-    /// The name used in scene files and on the command line (`explicit-euler`, `symplectic-euler`).
+    /// The name used in scene files and on the command line (`explicit-euler`, `symplectic-euler`,
+    /// `linearized`, `newton`, `pd`).
     pub fn name(&self) -> &'static str {
         match self {
             Integrator::ExplicitEuler => "explicit-euler",
             Integrator::SymplecticEuler => "symplectic-euler",
+            Integrator::Linearized => "linearized",
             Integrator::Newton => "newton",
             Integrator::ProjectiveDynamics => "pd",
         }
@@ -66,12 +88,150 @@ impl FromStr for Integrator {
         match s {
             "explicit-euler" | "forward-euler" => Ok(Integrator::ExplicitEuler),
             "symplectic-euler" | "semi-implicit-euler" => Ok(Integrator::SymplecticEuler),
+            "linearized" | "linearised" | "linearized-euler" => Ok(Integrator::Linearized),
             "newton" | "backward-euler" => Ok(Integrator::Newton),
             "pd" | "projective-dynamics" => Ok(Integrator::ProjectiveDynamics),
             other => Err(UnknownIntegrator {
                 name: other.to_string(),
             }),
         }
+    }
+}
+
+/// The linear solver of the linearised integrator.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum LinearSolver {
+    /// Block Jacobi (3×3 blocks in 3D, seed 000): cheap iterations, but converges only when the
+    /// system is block diagonally dominant enough (small β h² k / m); otherwise it reports
+    /// divergence.
+    Jacobi,
+    /// Conjugate gradient with the block-Jacobi preconditioner (the default): converges for every
+    /// symmetric positive definite system.
+    #[default]
+    ConjugateGradient,
+}
+
+impl LinearSolver {
+    /// Every linear solver, in the order the command lists them.
+    pub const ALL: &'static [LinearSolver] =
+        &[LinearSolver::Jacobi, LinearSolver::ConjugateGradient];
+
+    /// The name used in scene files and on the command line (`jacobi`, `cg`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            LinearSolver::Jacobi => "jacobi",
+            LinearSolver::ConjugateGradient => "cg",
+        }
+    }
+}
+
+impl fmt::Display for LinearSolver {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown linear solver name.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown linear solver {name:?}; expected \"jacobi\" or \"cg\"")]
+pub struct UnknownLinearSolver {
+    /// The name that was given.
+    pub name: String,
+}
+
+impl FromStr for LinearSolver {
+    type Err = UnknownLinearSolver;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "jacobi" => Ok(LinearSolver::Jacobi),
+            "cg" | "conjugate-gradient" => Ok(LinearSolver::ConjugateGradient),
+            other => Err(UnknownLinearSolver {
+                name: other.to_string(),
+            }),
+        }
+    }
+}
+
+/// Settings of the linearised integrator ([`Integrator::Linearized`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinearizedParams {
+    /// β in [0, 1] (dimensionless): 0 is explicit (the matrix is M plus the damping terms), ½ the
+    /// midpoint-like rule, 1 linearised backward Euler. Default 1, the unconditionally stable member
+    /// for linear springs.
+    pub beta: f64,
+    /// Jacobi or conjugate gradient. Default conjugate gradient (converges on any SPD system).
+    pub solver: LinearSolver,
+    /// Stop the linear solve at ‖b − A v‖ ≤ `tolerance` · ‖b‖ (relative residual). Default 1e-8:
+    /// far below the linearisation error of the step itself.
+    pub tolerance: f64,
+    /// Iteration limit of the linear solve. Default 1000. A solve that reaches it is kept, and
+    /// reported with [`hooke_solvers::StopReason::IterationLimit`] in the step's report (never as
+    /// converged).
+    pub max_iterations: usize,
+    /// The spring Hessian in ∂f/∂x: exact (default; then β = 1 is exactly one Newton step) or
+    /// clamped (always positive semidefinite, see [`Definiteness`]).
+    pub definiteness: Definiteness,
+    /// With the exact Hessian, when the system is found not to be positive definite (CG meets
+    /// pᵀAp ≤ 0, or Jacobi diverges; compressed springs at large β h² k / m), refill it with the
+    /// clamped Hessian and solve again, counting it in
+    /// [`StepReport::clamped_hessian`](crate::StepReport::clamped_hessian). Default true; false
+    /// turns that case into [`SimError::LinearSolve`].
+    pub clamp_on_failure: bool,
+}
+
+impl Default for LinearizedParams {
+    fn default() -> Self {
+        LinearizedParams {
+            beta: 1.0,
+            solver: LinearSolver::ConjugateGradient,
+            tolerance: 1e-8,
+            max_iterations: 1000,
+            definiteness: Definiteness::Exact,
+            clamp_on_failure: true,
+        }
+    }
+}
+
+impl LinearizedParams {
+    /// Check β ∈ [0, 1], a finite positive tolerance and at least one iteration.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the parameter.
+    pub fn validate(&self) -> Result<(), SimError> {
+        check_beta(self.beta)?;
+        check_tolerance(self.tolerance)?;
+        check_iterations(self.max_iterations)?;
+        Ok(())
+    }
+}
+
+fn check_beta(beta: f64) -> Result<f64, SimError> {
+    if (0.0..=1.0).contains(&beta) {
+        Ok(beta)
+    } else {
+        Err(SimError::invalid("beta", beta, "must be in [0, 1]"))
+    }
+}
+
+fn check_tolerance(tolerance: f64) -> Result<f64, SimError> {
+    if tolerance > 0.0 && tolerance.is_finite() {
+        Ok(tolerance)
+    } else {
+        Err(SimError::invalid(
+            "tolerance",
+            tolerance,
+            "must be finite and positive",
+        ))
+    }
+}
+
+fn check_iterations(iterations: usize) -> Result<usize, SimError> {
+    if iterations >= 1 {
+        Ok(iterations)
+    } else {
+        Err(SimError::invalid("iterations", 0, "must be at least 1"))
     }
 }
 
@@ -88,6 +248,8 @@ pub struct Settings {
     pub allow_unstable: bool,
     /// Use rayon for the per-spring and per-vertex loops (results are identical either way).
     pub parallel: bool,
+    /// The linearised integrator's settings (default: β = 1, CG to 1e-8).
+    pub linearized: LinearizedParams,
     /// Newton's settings (default: relative gradient 1e-8).
     pub newton: hooke_solvers::NewtonParams,
     /// Projective dynamics' settings (default: 10 iterations).
@@ -101,8 +263,230 @@ impl Default for Settings {
             substeps: None,
             allow_unstable: false,
             parallel: true,
+            linearized: LinearizedParams::default(),
             newton: hooke_solvers::NewtonParams::default(),
             pd: hooke_solvers::PdParams::default(),
+        }
+    }
+}
+
+/// Solver settings given by name, as a scene file's `[integrator]` section and `hooke run`'s flags
+/// give them. `None` keeps the current value.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolverOptions {
+    /// β of the linearised integrator, in [0, 1].
+    pub beta: Option<f64>,
+    /// The linearised integrator's linear solver.
+    pub linear_solver: Option<LinearSolver>,
+    /// Iterations: the linear solver's limit (linearized), Newton's iteration limit (newton), the
+    /// iterations per step (pd). At least 1.
+    pub iterations: Option<usize>,
+    /// Tolerance, relative: the linear solver's residual (linearized), Newton's gradient (newton),
+    /// PD's position change (pd). Finite and positive.
+    pub tolerance: Option<f64>,
+}
+
+impl Settings {
+    /// Apply `options` to the solver of `self.integrator` (set the integrator first).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for β outside [0, 1], a tolerance that is not finite and
+    /// positive, zero iterations, β or a linear solver for another integrator than `linearized`, and
+    /// iterations or a tolerance for an explicit integrator (which solves nothing).
+    pub fn apply_options(&mut self, options: &SolverOptions) -> Result<(), SimError> {
+        let integrator = self.integrator;
+        let only_linearized = |name: &str, value: String| {
+            SimError::invalid(
+                name,
+                value,
+                format!("applies only to the linearized integrator (this run uses {integrator})"),
+            )
+        };
+        if let Some(beta) = options.beta {
+            check_beta(beta)?;
+            if integrator != Integrator::Linearized {
+                return Err(only_linearized("beta", beta.to_string()));
+            }
+            self.linearized.beta = beta;
+        }
+        if let Some(solver) = options.linear_solver {
+            if integrator != Integrator::Linearized {
+                return Err(only_linearized("linear solver", solver.to_string()));
+            }
+            self.linearized.solver = solver;
+        }
+        let no_solver = |name: &str, value: String| {
+            SimError::invalid(
+                name,
+                value,
+                format!(
+                    "{integrator} is explicit and solves no system; iterations and tolerance apply \
+                     to linearized, newton and pd"
+                ),
+            )
+        };
+        if let Some(iterations) = options.iterations {
+            check_iterations(iterations)?;
+            match integrator {
+                Integrator::Linearized => self.linearized.max_iterations = iterations,
+                Integrator::Newton => self.newton.max_iterations = iterations,
+                Integrator::ProjectiveDynamics => self.pd.max_iterations = iterations,
+                _ => return Err(no_solver("iterations", iterations.to_string())),
+            }
+        }
+        if let Some(tolerance) = options.tolerance {
+            check_tolerance(tolerance)?;
+            match integrator {
+                Integrator::Linearized => self.linearized.tolerance = tolerance,
+                Integrator::Newton => self.newton.tolerance = tolerance,
+                Integrator::ProjectiveDynamics => self.pd.tolerance = tolerance,
+                _ => return Err(no_solver("tolerance", tolerance.to_string())),
+            }
+        }
+        Ok(())
+    }
+
+    /// The settings of the chosen integrator's solver, by name, for reports: (β, linear solver,
+    /// iterations, tolerance), each `None` where the integrator has no such setting.
+    pub fn solver_options(&self) -> SolverOptions {
+        match self.integrator {
+            Integrator::Linearized => SolverOptions {
+                beta: Some(self.linearized.beta),
+                linear_solver: Some(self.linearized.solver),
+                iterations: Some(self.linearized.max_iterations),
+                tolerance: Some(self.linearized.tolerance),
+            },
+            Integrator::Newton => SolverOptions {
+                iterations: Some(self.newton.max_iterations),
+                tolerance: Some(self.newton.tolerance),
+                ..SolverOptions::default()
+            },
+            Integrator::ProjectiveDynamics => SolverOptions {
+                iterations: Some(self.pd.max_iterations),
+                tolerance: Some(self.pd.tolerance),
+                ..SolverOptions::default()
+            },
+            _ => SolverOptions::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for i in Integrator::ALL {
+            assert_eq!(i.name().parse::<Integrator>().unwrap(), *i);
+        }
+        for s in LinearSolver::ALL {
+            assert_eq!(s.name().parse::<LinearSolver>().unwrap(), *s);
+        }
+        assert!("rk4".parse::<Integrator>().is_err());
+        assert!("gmres".parse::<LinearSolver>().is_err());
+    }
+
+    #[test]
+    fn options_reach_the_chosen_solver_and_bad_values_are_refused() {
+        let mut s = Settings {
+            integrator: Integrator::Linearized,
+            ..Settings::default()
+        };
+        s.apply_options(&SolverOptions {
+            beta: Some(0.5),
+            linear_solver: Some(LinearSolver::Jacobi),
+            iterations: Some(7),
+            tolerance: Some(1e-6),
+        })
+        .unwrap();
+        assert_eq!(s.linearized.beta, 0.5);
+        assert_eq!(s.linearized.solver, LinearSolver::Jacobi);
+        assert_eq!(s.linearized.max_iterations, 7);
+        assert_eq!(s.linearized.tolerance, 1e-6);
+        let mut n = Settings {
+            integrator: Integrator::Newton,
+            ..Settings::default()
+        };
+        n.apply_options(&SolverOptions {
+            iterations: Some(9),
+            tolerance: Some(1e-10),
+            ..Default::default()
+        })
+        .unwrap();
+        assert_eq!((n.newton.max_iterations, n.newton.tolerance), (9, 1e-10));
+        for (options, integrator, expected) in [
+            (
+                SolverOptions {
+                    beta: Some(1.5),
+                    ..Default::default()
+                },
+                Integrator::Linearized,
+                "beta",
+            ),
+            (
+                SolverOptions {
+                    beta: Some(-0.1),
+                    ..Default::default()
+                },
+                Integrator::Linearized,
+                "beta",
+            ),
+            (
+                SolverOptions {
+                    beta: Some(f64::NAN),
+                    ..Default::default()
+                },
+                Integrator::Linearized,
+                "beta",
+            ),
+            (
+                SolverOptions {
+                    tolerance: Some(0.0),
+                    ..Default::default()
+                },
+                Integrator::Newton,
+                "tolerance",
+            ),
+            (
+                SolverOptions {
+                    tolerance: Some(-1.0),
+                    ..Default::default()
+                },
+                Integrator::Linearized,
+                "tolerance",
+            ),
+            (
+                SolverOptions {
+                    iterations: Some(0),
+                    ..Default::default()
+                },
+                Integrator::ProjectiveDynamics,
+                "iterations",
+            ),
+            (
+                SolverOptions {
+                    beta: Some(0.5),
+                    ..Default::default()
+                },
+                Integrator::Newton,
+                "only to the linearized",
+            ),
+            (
+                SolverOptions {
+                    iterations: Some(5),
+                    ..Default::default()
+                },
+                Integrator::SymplecticEuler,
+                "explicit",
+            ),
+        ] {
+            let mut s = Settings {
+                integrator,
+                ..Settings::default()
+            };
+            let err = s.apply_options(&options).unwrap_err().to_string();
+            assert!(err.contains(expected), "{options:?} on {integrator}: {err}");
         }
     }
 }

@@ -22,6 +22,103 @@ pub enum Pins<const D: usize> {
     },
 }
 
+/// A prescribed path for pinned vertices (SPEC §3: the pinned positions b change, the system
+/// matrix does not): the displacement d(t) (m) at simulated time t (s). A vertex on a path is at
+/// x(t) = x(t₀) + d(t) − d(t₀), t₀ the time of the state the simulation starts from; its velocity
+/// over a step is the path's mean velocity over that step.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PinPath<const D: usize> {
+    /// d(t) = velocity · t, velocity in m/s.
+    ConstantVelocity {
+        /// m/s.
+        velocity: SVector<f64, D>,
+    },
+    /// d(t) linearly interpolated between keyframes; constant before the first keyframe and after
+    /// the last. Times strictly increasing.
+    Keyframes(Vec<Keyframe<D>>),
+}
+
+/// One keyframe of a [`PinPath::Keyframes`] path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Keyframe<const D: usize> {
+    /// Time, s.
+    pub time: f64,
+    /// Displacement at that time, m.
+    pub offset: SVector<f64, D>,
+}
+
+impl<const D: usize> PinPath<D> {
+    /// Check finiteness and, for keyframes, at least one keyframe with strictly increasing times.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the field.
+    pub fn validate(&self) -> Result<(), SimError> {
+        match self {
+            PinPath::ConstantVelocity { velocity } => {
+                crate::error::finite_vector("pin path velocity", velocity)
+            }
+            PinPath::Keyframes(keys) => {
+                if keys.is_empty() {
+                    return Err(SimError::invalid(
+                        "pin path keyframes",
+                        "[]",
+                        "give at least one keyframe",
+                    ));
+                }
+                for (k, key) in keys.iter().enumerate() {
+                    if !key.time.is_finite() {
+                        return Err(SimError::invalid(
+                            format!("pin path keyframes[{k}].time"),
+                            key.time,
+                            "must be finite",
+                        ));
+                    }
+                    crate::error::finite_vector(
+                        &format!("pin path keyframes[{k}].offset"),
+                        &key.offset,
+                    )?;
+                    if k > 0 && keys[k - 1].time >= key.time {
+                        return Err(SimError::invalid(
+                            format!("pin path keyframes[{k}].time"),
+                            key.time,
+                            "keyframe times must be strictly increasing",
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The displacement d(t) (m).
+    pub fn offset(&self, t: f64) -> SVector<f64, D> {
+        match self {
+            PinPath::ConstantVelocity { velocity } => velocity * t,
+            PinPath::Keyframes(keys) => {
+                let after = keys.partition_point(|k| k.time <= t);
+                if after == 0 {
+                    return keys[0].offset;
+                }
+                if after == keys.len() {
+                    return keys[after - 1].offset;
+                }
+                let (a, b) = (&keys[after - 1], &keys[after]);
+                let s = (t - a.time) / (b.time - a.time);
+                a.offset + (b.offset - a.offset) * s
+            }
+        }
+    }
+}
+
+/// Pinned vertices that follow a [`PinPath`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MovingPins<const D: usize> {
+    /// The vertices, sorted.
+    pub vertices: Vec<u32>,
+    /// Their common path.
+    pub path: PinPath<D>,
+}
+
 /// Positions (m), velocities (m/s) and time (s) of a simulation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct State<const D: usize> {
@@ -57,6 +154,7 @@ pub struct Scene<const D: usize> {
     damping: Damping,
     contacts: Vec<Contact<D>>,
     time_step: f64,
+    moving: Vec<MovingPins<D>>,
 }
 
 impl<const D: usize> Scene<D> {
@@ -75,16 +173,69 @@ impl<const D: usize> Scene<D> {
             damping: Damping::default(),
             contacts: Vec::new(),
             time_step,
+            moving: Vec::new(),
         })
     }
 
-    /// Pin vertices (replacing earlier pins).
+    /// Pin vertices (replacing earlier pins, moving ones included).
     ///
     /// # Errors
     /// [`SimError::PinOutOfRange`], [`SimError::EmptyPinRegion`] or [`SimError::EverythingPinned`].
     pub fn with_pins(mut self, pins: Pins<D>) -> Result<Self, SimError> {
+        let list = self.resolve_pins(pins)?;
+        self.moving.clear();
+        self.set_pinned(list)?;
+        Ok(self)
+    }
+
+    /// Pin the vertices of `pins` (in addition to those pinned already) and move them along
+    /// `path`. The system matrices of the implicit integrators do not change (SPEC §3): only the
+    /// pinned positions do, and factorisations are kept.
+    ///
+    /// # Errors
+    /// As [`Scene::with_pins`]; [`SimError::InvalidParameter`] for an invalid path or a vertex that
+    /// is already on another path.
+    pub fn with_pin_path(mut self, pins: Pins<D>, path: PinPath<D>) -> Result<Self, SimError> {
+        path.validate()?;
+        let mut vertices = self.resolve_pins(pins)?;
+        vertices.sort_unstable();
+        vertices.dedup();
+        if let Some(&v) = vertices.iter().find(|&&v| {
+            self.moving
+                .iter()
+                .any(|m| m.vertices.binary_search(&v).is_ok())
+        }) {
+            return Err(SimError::invalid(
+                "pin path",
+                v,
+                "the vertex is already on another pin path",
+            ));
+        }
+        let mut all = self.pinned.clone();
+        all.extend_from_slice(&vertices);
+        self.set_pinned(all)?;
+        self.moving.push(MovingPins { vertices, path });
+        Ok(self)
+    }
+
+    fn set_pinned(&mut self, mut list: Vec<u32>) -> Result<(), SimError> {
         let n = self.mesh.vertex_count();
-        let mut list: Vec<u32> = match pins {
+        list.sort_unstable();
+        list.dedup();
+        if list.len() == n {
+            return Err(SimError::EverythingPinned { vertex_count: n });
+        }
+        self.is_pinned = vec![false; n];
+        for &v in &list {
+            self.is_pinned[v as usize] = true;
+        }
+        self.pinned = list;
+        Ok(())
+    }
+
+    fn resolve_pins(&self, pins: Pins<D>) -> Result<Vec<u32>, SimError> {
+        let n = self.mesh.vertex_count();
+        let list: Vec<u32> = match pins {
             Pins::Vertices(list) => {
                 if let Some(&bad) = list.iter().find(|&&v| v as usize >= n) {
                     return Err(SimError::PinOutOfRange {
@@ -112,17 +263,7 @@ impl<const D: usize> Scene<D> {
                 inside
             }
         };
-        list.sort_unstable();
-        list.dedup();
-        if list.len() == n {
-            return Err(SimError::EverythingPinned { vertex_count: n });
-        }
-        self.is_pinned = vec![false; n];
-        for &v in &list {
-            self.is_pinned[v as usize] = true;
-        }
-        self.pinned = list;
-        Ok(self)
+        Ok(list)
     }
 
     /// Set the external forces (replacing earlier ones).
@@ -173,6 +314,11 @@ impl<const D: usize> Scene<D> {
     /// Pinned vertices, sorted.
     pub fn pinned(&self) -> &[u32] {
         &self.pinned
+    }
+
+    /// Pinned vertices that follow a prescribed path (a subset of [`Scene::pinned`]).
+    pub fn pin_paths(&self) -> &[MovingPins<D>] {
+        &self.moving
     }
 
     /// One flag per vertex: pinned or not.

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use crate::implicit::BackwardEuler;
 use crate::integrator::{Integrator, Settings};
+use crate::linearized::Linearized;
 use crate::stability::{stability_bound, StabilityBound};
 use crate::{Energy, Scene, SimError, State};
 
@@ -31,6 +32,11 @@ pub struct StepReport {
     pub solver: Option<SolveSummary>,
     /// Wall time of the step.
     pub wall_time: Duration,
+    /// The linearised integrator found the exact Hessian's system not positive definite and solved
+    /// the step with the clamped Hessian (see
+    /// [`LinearizedParams::clamp_on_failure`](crate::LinearizedParams::clamp_on_failure)); false for
+    /// every other integrator.
+    pub clamped_hessian: bool,
 }
 
 /// A scene being simulated. Buffers are allocated once in [`Simulation::new`]; steps do not allocate.
@@ -47,6 +53,11 @@ pub struct Simulation<const D: usize> {
     start_time: f64,
     divergence_limit: f64,
     implicit: Option<BackwardEuler<D>>,
+    linearized: Option<Linearized<D>>,
+    /// Vertices on pin paths: (vertex, index into the scene's paths, anchor = x(t₀) − d(t₀)).
+    moving: Vec<(usize, usize, SVector<f64, D>)>,
+    /// Pinned positions at the end of the current step (full numbering; free entries unused).
+    next_pinned: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -114,6 +125,17 @@ impl<const D: usize> Simulation<D> {
             Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(&scene, settings.pd)?),
             _ => None,
         };
+        let linearized = match settings.integrator {
+            Integrator::Linearized => Some(Linearized::new(&scene, settings.linearized)?),
+            _ => None,
+        };
+        let mut moving = Vec::new();
+        for (index, group) in scene.pin_paths().iter().enumerate() {
+            let start = group.path.offset(state.time);
+            for &v in &group.vertices {
+                moving.push((v as usize, index, state.positions[v as usize] - start));
+            }
+        }
         let spring_forces = SpringForces::new(n, scene.mesh().springs());
         let start_time = state.time;
         let extent = state
@@ -134,6 +156,9 @@ impl<const D: usize> Simulation<D> {
             start_time,
             divergence_limit,
             implicit,
+            linearized,
+            moving,
+            next_pinned: vec![SVector::zeros(); n],
         })
     }
 
@@ -167,6 +192,24 @@ impl<const D: usize> Simulation<D> {
         self.steps_taken
     }
 
+    /// Wall time of the last factorisation of a system matrix that stays constant over the run
+    /// (projective dynamics factors K (M + h² L) Kᵀ once, in [`Simulation::new`]; moving pins change
+    /// only the right-hand side). `None` for the other integrators.
+    pub fn factorization_time(&self) -> Option<Duration> {
+        self.implicit.as_ref().and_then(|i| i.factor_time())
+    }
+
+    /// Write the pinned positions at time `t` into `self.next_pinned` (static pins: where they are).
+    fn pinned_targets(&mut self, t: f64) {
+        for &v in self.scene.pinned() {
+            self.next_pinned[v as usize] = self.state.positions[v as usize];
+        }
+        let paths = self.scene.pin_paths();
+        for &(v, path, anchor) in &self.moving {
+            self.next_pinned[v] = anchor + paths[path].path.offset(t);
+        }
+    }
+
     /// Energy of the current state (J).
     pub fn energy(&self) -> Energy {
         self.scene.energy(&self.state)
@@ -180,10 +223,31 @@ impl<const D: usize> Simulation<D> {
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
         let mut solver = None;
+        let mut clamped_hessian = false;
+        let end_time = self.start_time + (self.steps_taken + 1) as f64 * self.scene.time_step();
+        if self.implicit.is_some() || self.linearized.is_some() {
+            self.pinned_targets(end_time);
+        }
         if let Some(implicit) = &mut self.implicit {
             let state = &mut self.state;
-            solver =
-                Some(implicit.step(&self.scene, &mut state.positions, &mut state.velocities)?);
+            solver = Some(implicit.step(
+                &self.scene,
+                &mut state.positions,
+                &mut state.velocities,
+                &self.next_pinned,
+            )?);
+        } else if let Some(linearized) = &mut self.linearized {
+            let state = &mut self.state;
+            let outcome = linearized.step(
+                &self.scene,
+                &mut state.positions,
+                &mut state.velocities,
+                &self.next_pinned,
+                self.steps_taken + 1,
+                self.settings.parallel,
+            )?;
+            solver = Some(outcome.summary);
+            clamped_hessian = outcome.clamped;
         } else {
             let h = self.scene.time_step() / self.substeps as f64;
             for _ in 0..self.substeps {
@@ -199,6 +263,7 @@ impl<const D: usize> Simulation<D> {
             substeps: self.substeps,
             solver,
             wall_time: start.elapsed(),
+            clamped_hessian,
         })
     }
 
@@ -244,6 +309,9 @@ impl<const D: usize> Simulation<D> {
     }
 
     fn explicit_substep(&mut self, h: f64) {
+        if !self.moving.is_empty() {
+            self.pinned_targets(self.state.time + h);
+        }
         self.compute_forces();
         let scene = &self.scene;
         let forces = scene.forces();
@@ -290,6 +358,11 @@ impl<const D: usize> Simulation<D> {
                 .zip(self.force.iter())
                 .zip(masses.iter().zip(pinned.iter()))
                 .for_each(update);
+        }
+        // Pins on a path move to where it is at the end of the substep (static ones stay, at rest).
+        for &(v, _, _) in &self.moving {
+            state.velocities[v] = (self.next_pinned[v] - state.positions[v]) / h;
+            state.positions[v] = self.next_pinned[v];
         }
         state.time += h;
     }

@@ -1,0 +1,345 @@
+//! Linearised implicit Euler of the β family (SPEC §2.3; seed 000, seed 004):
+//!
+//! [M − β h² ∂f/∂x(x) − h ∂f/∂v] v⁺ = M v + h f(x, v) − h (∂f/∂v) v,   x⁺ = x + h v⁺,
+//!
+//! over the free vertices (pins by reduction, SPEC §3), solved by block Jacobi or by conjugate
+//! gradient with the block-Jacobi preconditioner. Without velocity-dependent forces this is the
+//! seed's [M − β h² ∂f/∂x] v⁺ = M v + h f(x) (seed 004 prints b = v Δt M⁻¹ f; b = v + Δt M⁻¹ f is
+//! meant). β = 0 is symplectic Euler, ½ the midpoint-like rule, 1 linearised backward Euler: one
+//! Newton step of backward Euler started from x⁰ = x_n (not from y, where [`crate::Integrator::Newton`]
+//! starts).
+//!
+//! The matrix is assembled by [`HessianPattern::assemble_into`], which fills D + h'² ∇²E for a
+//! per-vertex diagonal D (the masses, plus the attractor below); with h' = h√β and ∇²E = −∂f/∂x
+//! (springs) that is the spring part. [`HessianPattern::add_vertex_diagonal`] adds the viscous and
+//! wind terms and [`HessianPattern::add_dashpot_into`] the dashpot's, each only when the scene has
+//! them. The symbolic pattern is built once per scene and the values are refilled in place every
+//! step. How each term of a scene enters:
+//!
+//! - springs: f(x) on the right-hand side; their exact Hessian (or the clamped one, see
+//!   [`LinearizedParams::definiteness`]), scaled by β h², in the matrix;
+//! - gravity and buoyancy: in f(x) on the right-hand side (their x-derivative is zero; buoyancy's
+//!   jump at the surface is not linearised);
+//! - the attractor f = −s m (x − p): f(x) on the right-hand side and its Jacobian −s m I in the
+//!   matrix, as + β h² s m on the vertex's diagonal (so β = 1 treats it exactly as backward Euler);
+//! - wind f = c (w − v): implicit in v, like viscous damping: + h c on the diagonal, and only its
+//!   constant part h c w on the right-hand side;
+//! - viscous damping f = −c v: implicit in v: h c added on the diagonal (the −h c v of f and
+//!   the h c v of −h (∂f/∂v) v cancel on the right-hand side);
+//! - dashpot damping f_i = −c_d ((v_i − v_j)·r̂) r̂: implicit in v through its velocity
+//!   Jacobian, blocks h c_d r̂r̂ᵀ added (r̂ at x_n; its dependence on x is not linearised), nothing
+//!   on the right-hand side;
+//! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve, before x⁺ = x + h v⁺ (the order of the
+//!   symplectic integrator, so that β = 0 is symplectic Euler exactly);
+//! - contact: a projection of x⁺ and v⁺ after the step (pinned vertices untouched);
+//! - pins: removed from the unknowns; a pinned vertex moves to its prescribed position at the end
+//!   of the step with velocity (x_pin(t + h) − x)/h, and that known velocity enters the free rows'
+//!   right-hand side through the coupling blocks (β h² H_s + h c_d r̂r̂ᵀ) v_pin of the springs to it.
+//!
+//! Damping and wind are thus treated by backward Euler in v whatever β (β scales only the position
+//! linearisation), which makes them unconditionally stable.
+
+use hooke_assembly::spring::{dashpot_velocity_block, hessian_block};
+use hooke_assembly::{
+    Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces,
+};
+use hooke_solvers::{
+    BlockJacobi, CgParams, ConjugateGradient, Jacobi, JacobiParams, Report, SolveError,
+    SolveSummary, Symmetric,
+};
+use nalgebra::{SMatrix, SVector};
+
+use crate::forces::ExternalForce;
+use crate::integrator::{LinearSolver, LinearizedParams};
+use crate::{Scene, SimError};
+
+/// What one linearised step did.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LinearizedStep {
+    pub summary: SolveSummary,
+    /// The exact Hessian was not positive definite and the step was solved with the clamped one.
+    pub clamped: bool,
+}
+
+/// The linearised integrator bound to one scene (topology, pins, masses, h, damping).
+#[derive(Debug)]
+pub(crate) struct Linearized<const D: usize> {
+    params: LinearizedParams,
+    free: FreeDofs,
+    pattern: HessianPattern<D>,
+    workspace: HessianWorkspace<D>,
+    values: Vec<f64>,
+    /// Per vertex (full numbering): m (1 + β h² s), s the attractor strength.
+    diagonal: Vec<f64>,
+    /// Per vertex: h (c_viscous + c_wind); empty when zero.
+    damping_diagonal: Vec<f64>,
+    /// Dashpot coefficient c_d (N·s/m).
+    dashpot: f64,
+    /// Per free vertex, D·D value indices of its diagonal block, entry (a, b) at a + D b.
+    diagonal_slots: Vec<usize>,
+    forces: SpringForces<D>,
+    force: Vec<SVector<f64, D>>,
+    rhs: Vec<f64>,
+    unknowns: Vec<f64>,
+    /// Velocity of each pinned vertex over the step (full numbering; free entries unused).
+    pin_velocity: Vec<SVector<f64, D>>,
+    /// Springs with exactly one pinned end.
+    boundary: Vec<u32>,
+    /// Σ c_wind (N·s/m) over the wind terms.
+    wind_coefficient: f64,
+    cg: ConjugateGradient,
+    jacobi: Jacobi,
+}
+
+impl<const D: usize> Linearized<D> {
+    pub(crate) fn new(scene: &Scene<D>, params: LinearizedParams) -> Result<Self, SimError> {
+        params.validate()?;
+        let mesh = scene.mesh();
+        let n = mesh.vertex_count();
+        let free = FreeDofs::new(n, scene.pinned())
+            .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
+        let pattern = HessianPattern::new(n, mesh.springs(), Some(&free));
+        let h = scene.time_step();
+        let mut attractor = 0.0;
+        let mut wind_coefficient = 0.0;
+        for f in scene.forces().as_slice() {
+            match f {
+                ExternalForce::Attractor { strength, .. } => attractor += strength,
+                ExternalForce::Wind { coefficient, .. } => wind_coefficient += coefficient,
+                _ => {}
+            }
+        }
+        let damping = scene.damping();
+        let diagonal = mesh
+            .masses()
+            .iter()
+            .map(|&m| m * (1.0 + params.beta * h * h * attractor))
+            .collect();
+        let damping_rate = h * (damping.viscous + wind_coefficient);
+        let damping_diagonal = if damping_rate > 0.0 {
+            vec![damping_rate; n]
+        } else {
+            Vec::new()
+        };
+        let symbolic = pattern.symbolic();
+        let mut diagonal_slots = Vec::with_capacity(D * D * free.free_count());
+        for f in 0..free.free_count() {
+            for b in 0..D {
+                let column = D * f + b;
+                let start = symbolic.col_ptr()[column];
+                let rows = symbolic.row_idx_of_col_raw(column);
+                let first = rows
+                    .iter()
+                    .position(|&r| r == D * f)
+                    .expect("the pattern stores every diagonal block");
+                for a in 0..D {
+                    debug_assert_eq!(rows[first + a], D * f + a);
+                    diagonal_slots.push(start + first + a);
+                }
+            }
+        }
+        let is_pinned = scene.is_pinned();
+        let boundary = mesh
+            .springs()
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| is_pinned[s.i as usize] != is_pinned[s.j as usize])
+            .map(|(k, _)| k as u32)
+            .collect();
+        let dim = D * free.free_count();
+        Ok(Linearized {
+            workspace: pattern.workspace(),
+            values: pattern.new_values(),
+            diagonal,
+            damping_diagonal,
+            dashpot: damping.dashpot,
+            diagonal_slots,
+            forces: SpringForces::new(n, mesh.springs()),
+            force: vec![SVector::zeros(); n],
+            rhs: vec![0.0; dim],
+            unknowns: vec![0.0; dim],
+            pin_velocity: vec![SVector::zeros(); n],
+            boundary,
+            wind_coefficient,
+            cg: ConjugateGradient::new(CgParams {
+                tolerance: params.tolerance,
+                max_iterations: params.max_iterations,
+            }),
+            jacobi: Jacobi::new(JacobiParams {
+                tolerance: params.tolerance,
+                max_iterations: params.max_iterations,
+                ..JacobiParams::default()
+            }),
+            params,
+            free,
+            pattern,
+        })
+    }
+
+    /// One step from `positions`, `velocities` (updated in place); pinned vertices end at
+    /// `next_pinned` (full numbering; free entries are not read). `step` numbers errors.
+    pub(crate) fn step(
+        &mut self,
+        scene: &Scene<D>,
+        positions: &mut [SVector<f64, D>],
+        velocities: &mut [SVector<f64, D>],
+        next_pinned: &[SVector<f64, D>],
+        step: usize,
+        parallel: bool,
+    ) -> Result<LinearizedStep, SimError> {
+        let h = scene.time_step();
+        let mesh = scene.mesh();
+        for &v in scene.pinned() {
+            let v = v as usize;
+            self.pin_velocity[v] = (next_pinned[v] - positions[v]) / h;
+        }
+        self.forces
+            .compute(mesh.springs(), positions, None, &mut self.force, parallel);
+        let mut definiteness = self.params.definiteness;
+        let mut clamped = false;
+        let report = loop {
+            self.assemble(scene, positions, velocities, definiteness, parallel);
+            match self.solve() {
+                Ok(report) => break report,
+                Err(SolveError::NotPositiveDefinite { .. } | SolveError::Diverged { .. })
+                    if definiteness == Definiteness::Exact
+                        && self.params.clamp_on_failure
+                        && self.params.beta > 0.0 =>
+                {
+                    definiteness = Definiteness::Clamped;
+                    clamped = true;
+                }
+                Err(source) => {
+                    return Err(SimError::LinearSolve {
+                        step,
+                        solver: self.params.solver.name(),
+                        source,
+                    })
+                }
+            }
+        };
+        let drag = (-h * scene.damping().drag).exp();
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let vel = SVector::<f64, D>::from_column_slice(&self.unknowns[D * f..D * f + D]) * drag;
+            velocities[v] = vel;
+            positions[v] += vel * h;
+            for contact in scene.contacts() {
+                contact.project(&mut positions[v], &mut velocities[v]);
+            }
+        }
+        for &v in scene.pinned() {
+            let v = v as usize;
+            positions[v] = next_pinned[v];
+            velocities[v] = self.pin_velocity[v];
+        }
+        Ok(LinearizedStep {
+            summary: report.summary(),
+            clamped,
+        })
+    }
+
+    /// Fill the matrix values, the right-hand side and the initial guess (v).
+    fn assemble(
+        &mut self,
+        scene: &Scene<D>,
+        positions: &[SVector<f64, D>],
+        velocities: &[SVector<f64, D>],
+        definiteness: Definiteness,
+        parallel: bool,
+    ) {
+        let h = scene.time_step();
+        let beta = self.params.beta;
+        let mesh = scene.mesh();
+        let masses = mesh.masses();
+        let forces = scene.forces();
+        self.pattern.assemble_into(
+            mesh.springs(),
+            positions,
+            &self.diagonal,
+            h * beta.sqrt(),
+            HessianParams {
+                definiteness,
+                parallel,
+            },
+            &mut self.workspace,
+            &mut self.values,
+        );
+        if !self.damping_diagonal.is_empty() {
+            self.pattern
+                .add_vertex_diagonal(&self.damping_diagonal, &mut self.values);
+        }
+        if self.dashpot > 0.0 {
+            self.pattern.add_dashpot_into(
+                mesh.springs(),
+                positions,
+                self.dashpot,
+                h,
+                &mut self.values,
+            );
+        }
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let (m, x, vel) = (masses[v], &positions[v], &velocities[v]);
+            // External forces at (x, v), with wind's −c v moved into the matrix.
+            let mut external = SVector::<f64, D>::zeros();
+            if !forces.is_empty() {
+                external = forces.force(m, x, vel) + vel * self.wind_coefficient;
+            }
+            let b = vel * m + (self.force[v] + external) * h;
+            self.rhs[D * f..D * f + D].copy_from_slice(b.as_slice());
+            self.unknowns[D * f..D * f + D].copy_from_slice(vel.as_slice());
+        }
+        // Known velocities of moving pins: −A_ij v_j to the free row i.
+        let dashpot = self.dashpot;
+        for &s in &self.boundary {
+            let spring = &mesh.springs()[s as usize];
+            let (i, j) = spring.ends();
+            let (free_end, pinned_end) = if self.free.is_pinned(j) {
+                (i, j)
+            } else {
+                (j, i)
+            };
+            let vp = self.pin_velocity[pinned_end];
+            if vp.iter().all(|&c| c == 0.0) {
+                continue;
+            }
+            let r = positions[i] - positions[j];
+            let mut coupling: SMatrix<f64, D, D> = SMatrix::zeros();
+            if beta > 0.0 {
+                coupling += hessian_block(spring.stiffness, spring.rest_length, &r, definiteness)
+                    * (beta * h * h);
+            }
+            if dashpot > 0.0 {
+                coupling -= dashpot_velocity_block(dashpot, &r) * h;
+            }
+            let f = self
+                .free
+                .free_index(free_end)
+                .expect("one end of a boundary spring is free");
+            let add = coupling * vp;
+            for a in 0..D {
+                self.rhs[D * f + a] += add[a];
+            }
+        }
+    }
+
+    fn solve(&mut self) -> Result<Report, SolveError> {
+        let values = &self.values;
+        let slots = &self.diagonal_slots;
+        let blocks = (0..self.free.free_count())
+            .map(|f| SMatrix::<f64, D, D>::from_fn(|a, b| values[slots[D * D * f + a + D * b]]));
+        let mut preconditioner = BlockJacobi::<D>::from_blocks(blocks)?;
+        let a = Symmetric(self.pattern.matrix(values));
+        match self.params.solver {
+            LinearSolver::ConjugateGradient => {
+                self.cg
+                    .solve(&a, &mut preconditioner, &self.rhs, &mut self.unknowns)
+            }
+            LinearSolver::Jacobi => {
+                self.jacobi
+                    .solve(&a, &preconditioner, &self.rhs, &mut self.unknowns)
+            }
+        }
+    }
+}
