@@ -152,3 +152,236 @@ fn errors_are_clear_and_not_panics() {
         );
     }
 }
+
+#[test]
+fn linearized_flags_reach_the_solver_and_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_str().unwrap();
+    let out = hooke(&[
+        "run",
+        "cloth-10",
+        "--integrator",
+        "linearized",
+        "--beta",
+        "0.5",
+        "--linear-solver",
+        "jacobi",
+        "--iterations",
+        "300",
+        "--tolerance",
+        "1e-6",
+        "--steps",
+        "3",
+        "--out",
+        out_dir,
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["integrator"], "linearized");
+    let s = &summary["solver_settings"];
+    assert_eq!(s["beta"], 0.5);
+    assert_eq!(s["linear_solver"], "jacobi");
+    assert_eq!(s["iterations"], 300);
+    assert_eq!(s["tolerance"], 1e-6);
+    for step in &summary["steps"].as_array().unwrap()[1..] {
+        let iterations = step["solver_iterations"].as_u64().unwrap();
+        assert!((1..=300).contains(&iterations), "{step}");
+        assert!(step["solver_residual"].as_f64().is_some(), "{step}");
+        assert!(step["solver_stop"].is_string(), "{step}");
+    }
+    // Newton and PD take --iterations and --tolerance too.
+    for integrator in ["newton", "pd"] {
+        let out = hooke(&[
+            "run",
+            "cloth-10",
+            "--integrator",
+            integrator,
+            "--iterations",
+            "7",
+            "--tolerance",
+            "1e-5",
+            "--steps",
+            "1",
+            "--out",
+            out_dir,
+            "--quiet",
+        ]);
+        assert!(
+            out.status.success(),
+            "{integrator}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(summary["solver_settings"]["iterations"], 7, "{integrator}");
+        assert_eq!(
+            summary["solver_settings"]["tolerance"], 1e-5,
+            "{integrator}"
+        );
+        assert!(summary["solver_settings"].get("beta").is_none());
+    }
+}
+
+#[test]
+fn a_scene_file_and_the_flags_give_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("cloth.toml");
+    std::fs::write(
+        &scene,
+        r#"
+name = "cloth-10"
+[mesh]
+generator = "cloth"
+n = 10
+stiffness = 1000.0
+[pins]
+vertices = [0, 9]
+[forces]
+gravity = [0.0, -9.81, 0.0]
+[integrator]
+method = "linearized"
+time_step = 0.03333333333333333
+beta = 0.75
+linear_solver = "jacobi"
+iterations = 400
+tolerance = 1e-7
+[run]
+steps = 4
+"#,
+    )
+    .unwrap();
+    let from_file = dir.path().join("file");
+    let from_flags = dir.path().join("flags");
+    let file_run = hooke(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        from_file.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let flag_run = hooke(&[
+        "run",
+        "cloth-10",
+        "--integrator",
+        "linearized",
+        "--beta",
+        "0.75",
+        "--linear-solver",
+        "jacobi",
+        "--iterations",
+        "400",
+        "--tolerance",
+        "1e-7",
+        "--steps",
+        "4",
+        "--out",
+        from_flags.to_str().unwrap(),
+        "--quiet",
+    ]);
+    for run in [&file_run, &flag_run] {
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let read = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+    };
+    let (a, b) = (read(&from_file), read(&from_flags));
+    assert_eq!(a["solver_settings"], b["solver_settings"]);
+    assert_eq!(a["solver_settings"]["beta"], 0.75);
+    assert_eq!(a["integrator"], b["integrator"]);
+    // Same settings, same run: the last frames are identical, byte for byte.
+    let last = |dir: &Path| std::fs::read(dir.join("frames/frame_0004.obj")).unwrap();
+    assert_eq!(last(&from_file), last(&from_flags));
+}
+
+#[test]
+fn bad_solver_flags_are_clear_errors_not_panics() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_str().unwrap();
+    let linearized = ["run", "cloth-10", "--integrator", "linearized"];
+    let cases: &[(&[&str], &str)] = &[
+        (&["--beta", "1.5"], "invalid --beta"),
+        (&["--beta", "-0.1"], "must be in [0, 1]"),
+        (&["--beta", "nan"], "must be in [0, 1]"),
+        (&["--tolerance", "0"], "invalid --tolerance"),
+        (&["--tolerance", "-1"], "must be finite and positive"),
+        (&["--tolerance=-1e-6"], "must be finite and positive"),
+        (&["--iterations", "0"], "invalid --iterations"),
+        (&["--linear-solver", "gmres"], "unknown linear solver"),
+    ];
+    let mismatched: &[(&[&str], &str)] = &[
+        (
+            &["run", "cloth-10", "--integrator", "newton", "--beta", "0.5"],
+            "applies only to the linearized integrator",
+        ),
+        (
+            &[
+                "run",
+                "cloth-10",
+                "--integrator",
+                "symplectic-euler",
+                "--tolerance",
+                "1e-6",
+            ],
+            "solves no system",
+        ),
+    ];
+    let all = cases
+        .iter()
+        .map(|(flags, expected)| {
+            let mut args = linearized.to_vec();
+            args.extend_from_slice(flags);
+            (args, *expected)
+        })
+        .chain(mismatched.iter().map(|(a, e)| (a.to_vec(), *e)));
+    for (mut args, expected) in all {
+        args.extend(["--steps", "1", "--out", out_dir, "--quiet"]);
+        let out = hooke(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+        assert!(
+            stderr.contains(expected),
+            "{args:?}: expected {expected:?} in {stderr}"
+        );
+    }
+}
+
+#[test]
+fn run_help_lists_every_integrator_and_solver_flag() {
+    let out = hooke(&["run", "--help"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    for word in [
+        "--integrator",
+        "explicit-euler",
+        "symplectic-euler",
+        "linearized",
+        "newton",
+        "pd",
+        "--beta",
+        "--linear-solver",
+        "jacobi",
+        "cg",
+        "--iterations",
+        "--tolerance",
+    ] {
+        assert!(
+            text.contains(word),
+            "`hooke run --help` mentions {word}:\n{text}"
+        );
+    }
+}

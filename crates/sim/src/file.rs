@@ -681,3 +681,129 @@ impl Context<'_> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::{LinearSolver, SolverOptions};
+
+    const BASE: &str = r#"
+[mesh]
+generator = "cloth"
+n = 4
+stiffness = 100.0
+[pins]
+vertices = [0, 3]
+[run]
+steps = 2
+"#;
+
+    fn parse(extra: &str) -> Result<Setup<3>, SceneFileError> {
+        let text = format!("{BASE}{extra}");
+        match parse_scene(&text, Path::new("test.toml"))?.setup {
+            AnySetup::Three(s) => Ok(s),
+            AnySetup::Two(_) => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn integrator_keys_give_the_settings_the_options_give() {
+        let setup = parse(
+            r#"
+[integrator]
+method = "linearized"
+time_step = 0.01
+beta = 0.25
+linear_solver = "jacobi"
+iterations = 123
+tolerance = 1e-9
+"#,
+        )
+        .unwrap();
+        let mut expected = Settings {
+            integrator: Integrator::Linearized,
+            ..Settings::default()
+        };
+        expected
+            .apply_options(&SolverOptions {
+                beta: Some(0.25),
+                linear_solver: Some(LinearSolver::Jacobi),
+                iterations: Some(123),
+                tolerance: Some(1e-9),
+            })
+            .unwrap();
+        assert_eq!(setup.settings, expected);
+        let newton = parse(
+            "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\niterations = 9\ntolerance = 1e-10\n",
+        )
+        .unwrap();
+        assert_eq!(newton.settings.newton.max_iterations, 9);
+        assert_eq!(newton.settings.newton.tolerance, 1e-10);
+    }
+
+    #[test]
+    fn bad_integrator_keys_name_the_key() {
+        for (section, expected) in [
+            ("method = \"linearized\"\nbeta = 2.0", "[integrator.beta]"),
+            (
+                "method = \"linearized\"\ntolerance = 0.0",
+                "[integrator.tolerance]",
+            ),
+            ("method = \"pd\"\niterations = 0", "[integrator.iterations]"),
+            (
+                "method = \"linearized\"\nlinear_solver = \"lu\"",
+                "[integrator.linear_solver]",
+            ),
+            (
+                "method = \"newton\"\nbeta = 0.5",
+                "applies only to the linearized",
+            ),
+            ("method = \"linearized\"\nbetta = 0.5", "betta"),
+        ] {
+            let err = parse(&format!("[integrator]\ntime_step = 0.01\n{section}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("test.toml"), "{err}");
+            assert!(err.contains(expected), "{section}: {err}");
+        }
+    }
+
+    #[test]
+    fn pin_paths_are_read_and_checked() {
+        let integrator = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";
+        let setup = parse(&format!(
+            "{integrator}[[pins.path]]\nvertices = [0, 3]\nvelocity = [0.5, 0.0, 0.0]\n\
+             [[pins.path]]\nvertices = [15]\n\
+             keyframes = [{{ time = 0.0, offset = [0.0, 0.0, 0.0] }}, {{ time = 1.0, offset = [0.0, 1.0, 0.0] }}]\n"
+        ))
+        .unwrap();
+        let paths = setup.scene.pin_paths();
+        assert_eq!(paths.len(), 2);
+        assert_eq!(paths[0].vertices, [0, 3]);
+        assert_eq!(setup.scene.pinned(), [0, 3, 15]);
+        assert_eq!(
+            paths[1].path.offset(0.5),
+            nalgebra::Vector3::new(0.0, 0.5, 0.0)
+        );
+        assert_eq!(
+            paths[1].path.offset(2.0),
+            nalgebra::Vector3::new(0.0, 1.0, 0.0)
+        );
+        for (path, expected) in [
+            ("vertices = [1]", "exactly one of `velocity`"),
+            ("vertices = [1]\nvelocity = [1.0, 0.0]", "pins.path[0].velocity"),
+            ("velocity = [1.0, 0.0, 0.0]", "give `vertices` or `region`"),
+            (
+                "vertices = [1]\nkeyframes = [{ time = 1.0, offset = [0.0, 0.0, 0.0] }, { time = 1.0, offset = [1.0, 0.0, 0.0] }]",
+                "strictly increasing",
+            ),
+            ("vertices = [99]\nvelocity = [1.0, 0.0, 0.0]", "does not exist"),
+            ("vertices = [1]\nspeed = 1.0", "speed"),
+        ] {
+            let err = parse(&format!("{integrator}[[pins.path]]\n{path}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(expected), "{path}: {err}");
+        }
+    }
+}
