@@ -1,7 +1,9 @@
 //! One backward Euler step of a spring mesh as an objective for [`crate::Newton`].
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use hooke_assembly::{FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces};
+use hooke_assembly::{
+    Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces,
+};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
@@ -22,11 +24,14 @@ pub struct BackwardEulerStep<const D: usize> {
     masses: Vec<f64>,
     springs: Vec<Spring>,
     shift: Vec<f64>,
+    definiteness: Definiteness,
     h: f64,
     /// Inertial target per vertex.
     y: Vec<SVector<f64, D>>,
     /// The full positions: pinned vertices fixed, free ones overwritten from the unknowns.
     x: Vec<SVector<f64, D>>,
+    /// Full positions of a line-search trial point.
+    trial_positions: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> BackwardEulerStep<D> {
@@ -52,9 +57,11 @@ impl<const D: usize> BackwardEulerStep<D> {
                 .iter()
                 .flat_map(|&v| [masses[v as usize]; D])
                 .collect(),
+            definiteness: Definiteness::Exact,
             h,
             y: vec![SVector::zeros(); n],
             x: vec![SVector::zeros(); n],
+            trial_positions: vec![SVector::zeros(); n],
             free,
             pattern,
         }
@@ -77,6 +84,14 @@ impl<const D: usize> BackwardEulerStep<D> {
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             unknowns[D * f..D * f + D].copy_from_slice(self.y[v as usize].as_slice());
         }
+    }
+
+    /// Which spring Hessian [`NewtonProblem::hessian`] assembles: [`Definiteness::Exact`] (the
+    /// default; indefinite under compression, quadratic convergence) or [`Definiteness::Clamped`]
+    /// (positive definite with the masses, so every Newton matrix factors, but only linear
+    /// convergence where springs are compressed).
+    pub fn set_definiteness(&mut self, definiteness: Definiteness) {
+        self.definiteness = definiteness;
     }
 
     /// The full positions for the unknowns `xf` (pinned vertices as set).
@@ -116,6 +131,41 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         inertia + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, true)
     }
 
+    /// Φ(trial) − Φ(x) term by term, so that its round-off is relative to the change rather than to
+    /// Φ: per vertex ½ m (t − x)·(t + x − 2y); per spring ½ k (|r_t| − |r_x|)(|r_t| + |r_x| − 2l) with
+    /// |r_t| − |r_x| = (r_t − r_x)·(r_t + r_x) / (|r_t| + |r_x|). Summed in a fixed order.
+    fn objective_change(&mut self, xf: &[f64], trial: &[f64]) -> f64 {
+        let mut inertia = 0.0;
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let x = SVector::<f64, D>::from_column_slice(&xf[D * f..D * f + D]);
+            let t = SVector::<f64, D>::from_column_slice(&trial[D * f..D * f + D]);
+            inertia += 0.5 * self.masses[v] * (t - x).dot(&(t + x - self.y[v] * 2.0));
+        }
+        // Positions before (self.x) and after (self.trial_positions) the step, pinned ones shared.
+        self.expand(xf);
+        self.trial_positions.copy_from_slice(&self.x);
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            self.trial_positions[v as usize] = SVector::from_column_slice(&trial[D * f..D * f + D]);
+        }
+        let (before, after) = (&self.x, &self.trial_positions);
+        let springs = &self.springs;
+        let energy = hooke_assembly::deterministic_sum(springs.len(), true, |s| {
+            let spring = &springs[s];
+            let (i, j) = spring.ends();
+            let r_x = before[i] - before[j];
+            let r_t = after[i] - after[j];
+            let (len_x, len_t) = (r_x.norm(), r_t.norm());
+            let sum = len_x + len_t;
+            if sum == 0.0 {
+                return 0.0;
+            }
+            let difference = (r_t - r_x).dot(&(r_t + r_x)) / sum;
+            0.5 * spring.stiffness * difference * (sum - 2.0 * spring.rest_length)
+        });
+        inertia + self.h * self.h * energy
+    }
+
     fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
         self.expand(xf);
         self.forces
@@ -139,7 +189,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             &self.x,
             &self.masses,
             self.h,
-            HessianParams::default(),
+            HessianParams {
+                definiteness: self.definiteness,
+                ..HessianParams::default()
+            },
             &mut self.workspace,
             &mut self.values,
         );

@@ -2,6 +2,12 @@
 //! pattern, numeric refactorisation into a reused value buffer, in-place solves of several right-hand
 //! sides with caller-owned scratch memory. Nothing is allocated after [`SparseCholesky::analyze`].
 //!
+//! The same symbolic analysis also serves an LDLᵀ factorisation without pivoting
+//! ([`SparseCholesky::factorize_ldlt`]) for matrices that may be indefinite: it reports the inertia
+//! (the signs of D, which by Sylvester's law are the signs of the eigenvalues) and fails only on an
+//! exactly zero pivot. Without pivoting it is not backward stable for every indefinite matrix; its
+//! users (Newton's method) check what they get, e.g. that a step descends.
+//!
 //! The matrix is given in full symmetric storage (both triangles, as hooke's assembly produces);
 //! only its lower triangle is read.
 
@@ -9,6 +15,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::ldlt::factor::{LdltError, LdltRegularization};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
@@ -85,12 +92,42 @@ pub enum CholeskyError {
         /// The analysed number of stored entries.
         expected_nnz: usize,
     },
+    /// An LDLᵀ pivot was exactly zero (or not finite): the matrix is singular in the analysed order.
+    #[error("the matrix is singular (zero pivot in column {column} of the permuted matrix)")]
+    Singular {
+        /// Index of the failing pivot in the fill-reducing order.
+        column: usize,
+    },
     /// The matrix holds NaN or infinite values.
     #[error("the matrix holds non-finite values")]
     NonFinite,
     /// faer could not complete the symbolic analysis (e.g. out of memory, or an index overflow).
     #[error("symbolic analysis failed: {0}")]
     Symbolic(String),
+}
+
+/// The inertia of a symmetric matrix, read off the pivots of its LDLᵀ factorisation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Inertia {
+    /// Positive eigenvalues.
+    pub positive: usize,
+    /// Negative eigenvalues.
+    pub negative: usize,
+}
+
+impl Inertia {
+    /// True if every eigenvalue is positive.
+    pub fn is_positive_definite(&self) -> bool {
+        self.negative == 0
+    }
+}
+
+/// Which factorisation the stored values hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stored {
+    None,
+    Llt,
+    Ldlt,
 }
 
 /// A sparse LLᵀ factorisation whose symbolic part is computed once and shared, and whose numeric
@@ -102,7 +139,7 @@ pub struct SparseCholesky {
     params: CholeskyParams,
     n: usize,
     pattern_nnz: usize,
-    factored: bool,
+    factored: Stored,
     analysis_time: Duration,
     factor_time: Duration,
 }
@@ -174,8 +211,16 @@ impl SparseCholesky {
         analysis_time: Duration,
     ) -> Result<Self, CholeskyError> {
         let n = symbolic.nrows();
-        let factor_req = symbolic
-            .factorize_numeric_llt_scratch::<f64>(par(params.factor_threads), Default::default());
+        let factor_req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(
+                par(params.factor_threads),
+                Default::default(),
+            ),
+            symbolic.factorize_numeric_ldlt_scratch::<f64>(
+                par(params.factor_threads),
+                Default::default(),
+            ),
+        ]);
         // Three right-hand sides (the x, y, z coordinates) is the widest solve hooke makes.
         let solve_req = symbolic.solve_in_place_scratch::<f64>(3, par(params.solve_threads));
         let scratch = MemBuffer::try_new(StackReq::any_of(&[factor_req, solve_req]))
@@ -187,7 +232,7 @@ impl SparseCholesky {
             params,
             n,
             pattern_nnz,
-            factored: false,
+            factored: Stored::None,
             analysis_time,
             factor_time: Duration::ZERO,
         })
@@ -230,20 +275,7 @@ impl SparseCholesky {
     /// [`CholeskyError::NotPositiveDefinite`]; after an error the previous factor is invalid and
     /// [`SparseCholesky::solve_in_place`] panics until a factorisation succeeds.
     pub fn factorize(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<(), CholeskyError> {
-        self.factored = false;
-        let nnz = a.compute_nnz();
-        if a.nrows() != self.n || a.ncols() != self.n || nnz != self.pattern_nnz {
-            return Err(CholeskyError::PatternMismatch {
-                rows: a.nrows(),
-                cols: a.ncols(),
-                nnz,
-                n: self.n,
-                expected_nnz: self.pattern_nnz,
-            });
-        }
-        if (0..self.n).any(|j| a.val_of_col(j).iter().any(|v| !v.is_finite())) {
-            return Err(CholeskyError::NonFinite);
-        }
+        self.check(a)?;
         let start = Instant::now();
         let stack = MemStack::new(&mut self.scratch);
         let result = self.symbolic.factorize_numeric_llt::<f64>(
@@ -258,13 +290,94 @@ impl SparseCholesky {
         self.factor_time = start.elapsed();
         match result {
             Ok(_) => {
-                self.factored = true;
+                self.factored = Stored::Llt;
                 Ok(())
             }
             Err(LltError::NonPositivePivot { index }) => {
                 Err(CholeskyError::NotPositiveDefinite { column: index })
             }
         }
+    }
+
+    /// Factor `a` (same pattern as analysed, possibly indefinite) as LDLᵀ without pivoting, in the
+    /// fill-reducing order of the analysis, and return its inertia. Solves then use this factor.
+    ///
+    /// # Errors
+    /// [`CholeskyError::PatternMismatch`], [`CholeskyError::NonFinite`], or
+    /// [`CholeskyError::Singular`] on a zero pivot; after an error no factor is held.
+    pub fn factorize_ldlt(
+        &mut self,
+        a: SparseColMatRef<'_, usize, f64>,
+    ) -> Result<Inertia, CholeskyError> {
+        self.check(a)?;
+        let start = Instant::now();
+        let stack = MemStack::new(&mut self.scratch);
+        let result = self.symbolic.factorize_numeric_ldlt::<f64>(
+            &mut self.factor,
+            a,
+            Side::Lower,
+            LdltRegularization::default(),
+            par(self.params.factor_threads),
+            stack,
+            Default::default(),
+        );
+        self.factor_time = start.elapsed();
+        match result {
+            Ok(_) => {
+                let mut inertia = Inertia::default();
+                let mut count = |d: f64| {
+                    if d > 0.0 {
+                        inertia.positive += 1;
+                    } else if d < 0.0 {
+                        inertia.negative += 1;
+                    }
+                };
+                match self.symbolic.raw() {
+                    SymbolicCholeskyRaw::Simplicial(s) => {
+                        // Each column of L starts with its diagonal, which holds D.
+                        for &start in &s.col_ptr()[..self.n] {
+                            count(self.factor[start]);
+                        }
+                    }
+                    SymbolicCholeskyRaw::Supernodal(s) => {
+                        // Supernode blocks are column-major, their leading square holds D.
+                        for k in 0..s.n_supernodes() {
+                            let cols = s.supernode_end()[k] - s.supernode_begin()[k];
+                            let rows = cols + s.nnz_per_super()[k];
+                            let base = s.col_ptr_for_val()[k];
+                            for c in 0..cols {
+                                count(self.factor[base + c * rows + c]);
+                            }
+                        }
+                    }
+                }
+                if inertia.positive + inertia.negative != self.n {
+                    return Err(CholeskyError::NonFinite);
+                }
+                self.factored = Stored::Ldlt;
+                Ok(inertia)
+            }
+            Err(LdltError::ZeroPivot { index }) => Err(CholeskyError::Singular { column: index }),
+        }
+    }
+
+    /// Check `a` against the analysed pattern and for finite values; forget the previous factor.
+    fn check(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<(), CholeskyError> {
+        self.factored = Stored::None;
+        let nnz = a.compute_nnz();
+        if a.nrows() != self.n || a.ncols() != self.n || nnz != self.pattern_nnz {
+            return Err(CholeskyError::PatternMismatch {
+                rows: a.nrows(),
+                cols: a.ncols(),
+                nnz,
+                n: self.n,
+                expected_nnz: self.pattern_nnz,
+            });
+        }
+        if (0..self.n).any(|j| a.val_of_col(j).iter().any(|v| !v.is_finite())) {
+            return Err(CholeskyError::NonFinite);
+        }
+        Ok(())
     }
 
     /// Solve A X = B in place for the columns of `rhs` (n × k, k ≤ 3 without allocating; wider
@@ -275,23 +388,24 @@ impl SparseCholesky {
     #[track_caller]
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         assert!(
-            self.factored,
-            "solve_in_place needs a successful factorize first"
+            self.factored != Stored::None,
+            "solve_in_place needs a successful factorisation first"
         );
         assert_eq!(rhs.nrows(), self.n, "right-hand side rows");
-        let llt = faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.factor);
         let par = par(self.params.solve_threads);
         let k = rhs.ncols();
         let mut start = 0;
         while start < k {
             let width = (k - start).min(3);
             let stack = MemStack::new(&mut self.scratch);
-            llt.solve_in_place_with_conj(
-                Conj::No,
-                rhs.rb_mut().subcols_mut(start, width),
-                par,
-                stack,
-            );
+            let columns = rhs.rb_mut().subcols_mut(start, width);
+            if self.factored == Stored::Llt {
+                faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.factor)
+                    .solve_in_place_with_conj(Conj::No, columns, par, stack);
+            } else {
+                faer::sparse::linalg::cholesky::LdltRef::new(&self.symbolic, &self.factor)
+                    .solve_in_place_with_conj(Conj::No, columns, par, stack);
+            }
             start += width;
         }
     }

@@ -35,9 +35,12 @@ mod report;
 
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
-pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
+pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
-pub use newton::{Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem, NewtonReport};
+pub use newton::{
+    IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
+    NewtonReport,
+};
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use projective::{PdParams, PdReport, ProjectiveDynamics};
 pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -1,0 +1,87 @@
+//! Newton on the backward Euler steps of cloth-N (SCENES.md: k = 1e3 N/m, pins 0 and N−1, gravity,
+//! h = 1/30 s, from rest), each step solved to a relative gradient of 1e-10 from x⁰ = y, printing
+//! the iterations, shifts and indefinite steps of every step and the full history of the last one.
+//! The 11th step (index 10) starts from SCENES.md's speed-vs-error state.
+//!
+//! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [shift]`
+//! (`shift`: use `IndefinitePolicy::Shift` instead of the default).
+
+use hooke_assembly::FreeDofs;
+use hooke_mesh::generators;
+use hooke_solvers::{BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem};
+use nalgebra::Vector3;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let n: usize = args.get(1).map_or(Ok(40), |s| s.parse())?;
+    let steps: usize = args.get(2).map_or(Ok(11), |s| s.parse())?;
+    let indefinite = match args.get(3).map(String::as_str) {
+        Some("shift") => IndefinitePolicy::Shift,
+        _ => IndefinitePolicy::NewtonIfDescent,
+    };
+    let mesh = generators::cloth(n, 1e3)?;
+    let pinned = [0u32, n as u32 - 1];
+    let h = 1.0 / 30.0;
+    let gravity = Vector3::new(0.0, -9.81, 0.0);
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned)?;
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
+    let params = NewtonParams {
+        tolerance: 1e-10,
+        max_iterations: 300,
+        indefinite,
+        ..Default::default()
+    };
+    let mut newton = Newton::new(step.pattern(), params)?;
+    let mut x = mesh.positions().to_vec();
+    let mut v = vec![Vector3::zeros(); x.len()];
+    let mut unknowns = vec![0.0; step.dim()];
+    for s in 0..steps {
+        let y: Vec<_> = (0..x.len())
+            .map(|i| {
+                if pinned.contains(&(i as u32)) {
+                    x[i]
+                } else {
+                    x[i] + v[i] * h + gravity * (h * h)
+                }
+            })
+            .collect();
+        step.set_step(&y, &x, &mut unknowns);
+        let r = newton.minimize(&mut step, &mut unknowns)?;
+        let to_1e8 = r
+            .history
+            .iter()
+            .position(|it| it.gradient <= 1e-8)
+            .map_or(r.iterations, |k| k + 1);
+        println!(
+            "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
+             {} indefinite, {} failed attempts, {:.2?} ({:.2?} factoring)",
+            r.iterations,
+            r.stop,
+            r.gradient(),
+            r.shifted_steps,
+            r.indefinite_steps,
+            r.failed_factorizations,
+            r.wall_time,
+            r.factor_time
+        );
+        if s + 1 == steps {
+            for (k, it) in r.history.iter().enumerate() {
+                println!(
+                    "  {k:3}: gradient {:.3e}, Φ {:.12e}, μ {:.0e}, failed {}, negative {}, α {}",
+                    it.gradient,
+                    it.objective,
+                    it.shift,
+                    it.failed_factorizations,
+                    it.negative_eigenvalues,
+                    it.step_length
+                );
+            }
+        }
+        let next = step.positions(&unknowns).to_vec();
+        for i in 0..x.len() {
+            v[i] = (next[i] - x[i]) / h;
+        }
+        x = next;
+    }
+    Ok(())
+}
