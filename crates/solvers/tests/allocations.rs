@@ -1,0 +1,171 @@
+//! No allocation per iteration: every solver's allocations during a solve must not grow with the
+//! number of iterations it runs (a solve may allocate its report once, sized up front). Measured
+//! with a counting global allocator; one test function, so no other test allocates concurrently.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use faer::sparse::{SparseColMat, Triplet};
+use hooke_assembly::FreeDofs;
+use hooke_mesh::generators;
+use hooke_solvers::{
+    BackwardEulerStep, BlockJacobi, CgParams, ConjugateGradient, Jacobi, JacobiParams, Newton,
+    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Symmetric,
+};
+use nalgebra::{Matrix3, Vector3};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations made by `f`.
+fn allocations(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    f();
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+#[test]
+fn solvers_do_not_allocate_per_iteration() {
+    // The counter sees allocations at all.
+    assert!(allocations(|| drop(std::hint::black_box(vec![0u8; 64]))) >= 1);
+    let n = 16;
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let pinned = [0, n as u32 - 1];
+    let h = 1.0 / 30.0;
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let y: Vec<Vector3<f64>> = mesh
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(v, x)| {
+            if pinned.contains(&(v as u32)) {
+                *x
+            } else {
+                x + Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
+            }
+        })
+        .collect();
+
+    // Projective dynamics, serial and parallel local steps.
+    for parallel in [false, true] {
+        let mut pd = ProjectiveDynamics::<3>::new(
+            mesh.springs(),
+            mesh.masses(),
+            &free,
+            h,
+            PdParams {
+                parallel,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut run = |iterations: usize| {
+            pd.params.max_iterations = iterations;
+            let mut x = y.clone();
+            allocations(|| {
+                pd.solve(mesh.springs(), &y, &mut x);
+            })
+        };
+        run(3); // warm-up: rayon's pool and any lazily sized buffer
+        let (few, many) = (run(2), run(40));
+        assert_eq!(
+            few, many,
+            "PD (parallel: {parallel}): {few} allocations in 2 iterations, {many} in 40"
+        );
+    }
+
+    // Newton on backward Euler.
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
+    let mut newton = Newton::new(step.pattern(), NewtonParams::default()).unwrap();
+    let mut unknowns = vec![0.0; step.dim()];
+    let mut run = |iterations: usize| {
+        newton.params.max_iterations = iterations;
+        newton.params.tolerance = 0.0;
+        step.set_step(&y, mesh.positions(), &mut unknowns);
+        allocations(|| {
+            let report = newton.minimize(&mut step, &mut unknowns).unwrap();
+            assert_eq!(report.iterations, iterations);
+        })
+    };
+    run(2);
+    let (few, many) = (run(1), run(4));
+    assert_eq!(
+        few, many,
+        "Newton: {few} allocations in 1 iteration, {many} in 4"
+    );
+
+    // CG and block Jacobi on a 3×3-block diagonally dominant system.
+    let blocks = 200;
+    let dim = 3 * blocks;
+    let mut triplets = Vec::new();
+    let mut diagonal = Vec::new();
+    for b in 0..blocks {
+        let block = Matrix3::new(8.0, 1.0, 0.5, 1.0, 7.0, 0.25, 0.5, 0.25, 9.0);
+        diagonal.push(block);
+        for r in 0..3 {
+            for c in 0..3 {
+                triplets.push(Triplet::new(3 * b + r, 3 * b + c, block[(r, c)]));
+            }
+        }
+        if b + 1 < blocks {
+            for a in 0..3 {
+                triplets.push(Triplet::new(3 * b + a, 3 * b + 3 + a, -1.0));
+                triplets.push(Triplet::new(3 * b + 3 + a, 3 * b + a, -1.0));
+            }
+        }
+    }
+    let matrix = SparseColMat::try_new_from_triplets(dim, dim, &triplets).unwrap();
+    let operator = Symmetric(matrix.as_ref());
+    let mut preconditioner = BlockJacobi::<3>::from_blocks(diagonal.iter().copied()).unwrap();
+    let b: Vec<f64> = (0..dim).map(|i| ((i * 7) % 11) as f64 - 5.0).collect();
+    let mut cg = ConjugateGradient::new(CgParams::default());
+    let mut run = |iterations: usize| {
+        cg.params.max_iterations = iterations;
+        cg.params.tolerance = 0.0;
+        let mut x = vec![0.0; dim];
+        allocations(|| {
+            let _ = cg.solve(&operator, &mut preconditioner, &b, &mut x);
+        })
+    };
+    run(3);
+    let (few, many) = (run(2), run(20));
+    assert_eq!(
+        few, many,
+        "CG: {few} allocations in 2 iterations, {many} in 20"
+    );
+
+    let diagonal = BlockJacobi::<3>::from_blocks(diagonal.iter().copied()).unwrap();
+    let mut jacobi = Jacobi::new(JacobiParams::default());
+    let mut run = |iterations: usize| {
+        jacobi.params.max_iterations = iterations;
+        jacobi.params.tolerance = 0.0;
+        let mut x = vec![0.0; dim];
+        allocations(|| {
+            let _ = jacobi.solve(&operator, &diagonal, &b, &mut x);
+        })
+    };
+    run(3);
+    let (few, many) = (run(2), run(20));
+    assert_eq!(
+        few, many,
+        "Jacobi: {few} allocations in 2 iterations, {many} in 20"
+    );
+}
