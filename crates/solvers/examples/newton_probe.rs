@@ -4,7 +4,9 @@
 //! The 11th step (index 10) starts from SCENES.md's speed-vs-error state.
 //!
 //! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [shift]`
-//! (`shift`: use `IndefinitePolicy::Shift` instead of the default).
+//! (`shift`: use `IndefinitePolicy::Shift` instead of the default). With `HOOKE_STATE=file` the
+//! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
+//! to get there).
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -35,7 +37,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut x = mesh.positions().to_vec();
     let mut v = vec![Vector3::zeros(); x.len()];
     let mut unknowns = vec![0.0; step.dim()];
-    for s in 0..steps {
+    // HOOKE_STATE=file: load the state after 10 steps from `file` if it exists (and start at step
+    // 10), else save it there when step 10 begins. Little-endian f64: positions, then velocities.
+    let state_file = std::env::var("HOOKE_STATE").ok();
+    let mut first = 0;
+    if let Some(bytes) = state_file.as_ref().and_then(|f| std::fs::read(f).ok()) {
+        let values: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
+        let count = x.len();
+        for i in 0..count {
+            x[i] = Vector3::from_column_slice(&values[3 * i..3 * i + 3]);
+            v[i] = Vector3::from_column_slice(&values[3 * (count + i)..3 * (count + i) + 3]);
+        }
+        first = 10;
+    }
+    for s in first..steps {
+        if let (10, 0, Some(file)) = (s, first, &state_file) {
+            let bytes: Vec<u8> = x
+                .iter()
+                .chain(&v)
+                .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()).collect::<Vec<_>>())
+                .collect();
+            std::fs::write(file, bytes)?;
+        }
         let y: Vec<_> = (0..x.len())
             .map(|i| {
                 if pinned.contains(&(i as u32)) {

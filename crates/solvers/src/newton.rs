@@ -27,8 +27,9 @@
 //! Known limit: on finely resolved buckling cloth (cloth-160's speed-vs-error step) Newton needs far
 //! more iterations than near a convex minimum: 100 (97 to 1e-8) with 27 failed attempts under the
 //! default policy, 57 with 39 failed under [`IndefinitePolicy::Shift`]. A Levenberg–Marquardt
-//! ratio test (182), falling back to the clamped Hessian (135) and trust-region switching between
-//! exact and clamped Hessians (134) were measured and are slower still.
+//! ratio test (182), falling back to the clamped Hessian (135), trust-region switching between
+//! exact and clamped Hessians (134) and refusing indefinite steps shorter than α = 1 (119) were
+//! measured and are slower still.
 
 use std::time::{Duration, Instant};
 
