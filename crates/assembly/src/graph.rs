@@ -27,22 +27,6 @@ pub(crate) struct Contribution {
     pub slot: u32,
     /// Whether this is the first spring writing to `slot` (write, not add: no zeroing pass).
     pub first: bool,
-    /// How the spring's block is obtained in a fused refill (see [`Reuse`]).
-    pub reuse: Reuse,
-}
-
-/// How a block column obtains a spring's block in a fused refill. Each spring's block is computed
-/// by the first (lower) of its free ends, which keeps it for the other end if that end is in the same
-/// leaf (leaves are processed column by column in increasing order, one leaf per task); otherwise
-/// each end computes it. A block is a pure function of the spring, so the bits are the same either way.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Reuse {
-    /// Compute it (the other end is pinned or in another leaf).
-    Compute,
-    /// Compute it and keep it for the other end.
-    ComputeAndKeep,
-    /// Read the block kept by the other end.
-    Kept,
 }
 
 impl Contribution {
@@ -110,7 +94,6 @@ impl BlockGraph {
                 spring: 0,
                 slot: Contribution::PINNED_OTHER,
                 first: false,
-                reuse: Reuse::Compute,
             };
             contribution_offsets[n_free]
         ];
@@ -124,7 +107,6 @@ impl BlockGraph {
                         spring: index as u32,
                         slot: other.map_or(Contribution::PINNED_OTHER, |o| o as u32),
                         first: false,
-                        reuse: Reuse::Compute,
                     };
                     fill[f] += 1;
                 }
@@ -138,25 +120,6 @@ impl BlockGraph {
             (n_free / LEAVES_WANTED).clamp(MIN_LEAF_COLUMNS, MAX_LEAF_COLUMNS),
             &mut leaves,
         );
-        let mut leaf_of = vec![0u32; n_free];
-        for (leaf, range) in leaves.windows(2).enumerate() {
-            leaf_of[range[0]..range[1]].fill(leaf as u32);
-        }
-        for column in 0..n_free {
-            let range = contribution_offsets[column]..contribution_offsets[column + 1];
-            for c in &mut contributions[range] {
-                if c.slot != Contribution::PINNED_OTHER {
-                    let other = c.slot as usize;
-                    let same_leaf = leaf_of[other] == leaf_of[column];
-                    c.reuse = match (same_leaf, other > column) {
-                        (false, _) => Reuse::Compute,
-                        (true, true) => Reuse::ComputeAndKeep,
-                        (true, false) => Reuse::Kept,
-                    };
-                }
-            }
-        }
-        drop(leaf_of);
         // Block rows per column: the diagonal and the free neighbours, sorted, deduplicated.
         let mut block_offsets = Vec::with_capacity(n_free + 1);
         block_offsets.push(0);
@@ -250,8 +213,24 @@ impl BlockGraph {
 
     #[inline]
     pub fn contributions(&self, column: usize) -> &[Contribution] {
-        &self.contributions
-            [self.contribution_offsets[column]..self.contribution_offsets[column + 1]]
+        &self.contributions[self.contribution_range(column)]
+    }
+
+    /// The positions of column `column`'s contributions in the list of all contributions (column
+    /// by column).
+    #[inline]
+    pub fn contribution_range(&self, column: usize) -> Range<usize> {
+        self.contribution_offsets[column]..self.contribution_offsets[column + 1]
+    }
+
+    /// Total number of contributions (springs counted once per free end).
+    pub fn contribution_count(&self) -> usize {
+        self.contributions.len()
+    }
+
+    /// Leaf boundaries: leaf k is the columns `leaves()[k]..leaves()[k + 1]`.
+    pub fn leaves(&self) -> &[usize] {
+        &self.leaves
     }
 
     /// The symbolic CSC structure of the scalar matrix with D×D blocks (layout in the module docs).
@@ -284,34 +263,117 @@ impl BlockGraph {
     ) where
         F: Fn(usize, &mut [f64]) + Sync,
     {
-        self.leaves_range::<D, F>(0..self.leaves.len() - 1, values, parallel, fill_column);
-    }
-
-    fn leaves_range<const D: usize, F>(
-        &self,
-        leaves: Range<usize>,
-        values: &mut [f64],
-        parallel: bool,
-        fill_column: &F,
-    ) where
-        F: Fn(usize, &mut [f64]) + Sync,
-    {
-        if !parallel || leaves.len() <= 1 {
+        let fill_leaf = |columns: Range<usize>, values: &mut [f64], _: &mut [()]| {
             let mut rest = values;
-            for column in self.leaves[leaves.start]..self.leaves[leaves.end] {
+            for column in columns {
                 let len = D * D * self.column_blocks(column).len();
                 let (this, tail) = rest.split_at_mut(len);
                 fill_column(column, this);
                 rest = tail;
             }
-        } else {
+        };
+        self.for_each_leaf::<D, (), _>(values, &mut [], None, parallel, &fill_leaf);
+    }
+
+    /// Fill the values of every leaf with `fill_leaf(columns, values_of_columns, scratch_of_leaf)`,
+    /// one task per leaf (in parallel by recursive halving of the leaf list if `parallel`). Leaf k's
+    /// scratch is `scratch[scratch_offsets[k]..scratch_offsets[k + 1]]` (empty without offsets).
+    /// Each leaf is filled by one call, so the result does not depend on the number of threads.
+    ///
+    /// # Panics
+    /// If `values` does not have D² values per block, or `scratch_offsets` one entry per leaf and
+    /// one more, ending at `scratch.len()`.
+    #[track_caller]
+    pub fn for_each_leaf<const D: usize, T: Send, F>(
+        &self,
+        values: &mut [f64],
+        scratch: &mut [T],
+        scratch_offsets: Option<&[usize]>,
+        parallel: bool,
+        fill_leaf: &F,
+    ) where
+        F: Fn(Range<usize>, &mut [f64], &mut [T]) + Sync,
+    {
+        assert_eq!(
+            values.len(),
+            D * D * self.blocks(),
+            "one value per stored entry"
+        );
+        if let Some(offsets) = scratch_offsets {
+            assert_eq!(
+                offsets.len(),
+                self.leaves.len(),
+                "one scratch range per leaf"
+            );
+            assert_eq!(offsets.last(), Some(&scratch.len()), "scratch length");
+        }
+        let leaves = 0..self.leaves.len() - 1;
+        self.leaves_range::<D, T, F>(
+            leaves,
+            values,
+            scratch,
+            scratch_offsets,
+            parallel,
+            fill_leaf,
+        );
+    }
+
+    fn leaves_range<const D: usize, T: Send, F>(
+        &self,
+        leaves: Range<usize>,
+        values: &mut [f64],
+        scratch: &mut [T],
+        scratch_offsets: Option<&[usize]>,
+        parallel: bool,
+        fill_leaf: &F,
+    ) where
+        F: Fn(Range<usize>, &mut [f64], &mut [T]) + Sync,
+    {
+        if leaves.len() == 1 {
+            let columns = self.leaves[leaves.start]..self.leaves[leaves.end];
+            fill_leaf(columns, values, scratch);
+        } else if !parallel {
+            let (mut values, mut scratch) = (values, scratch);
+            for leaf in leaves {
+                let columns = self.leaves[leaf]..self.leaves[leaf + 1];
+                let len =
+                    D * D * (self.block_offsets[columns.end] - self.block_offsets[columns.start]);
+                let scratch_len = scratch_offsets.map_or(0, |o| o[leaf + 1] - o[leaf]);
+                let (this, rest) = values.split_at_mut(len);
+                let (this_scratch, rest_scratch) = scratch.split_at_mut(scratch_len);
+                fill_leaf(columns, this, this_scratch);
+                (values, scratch) = (rest, rest_scratch);
+            }
+        } else if !leaves.is_empty() {
             let mid = leaves.start + leaves.len() / 2;
             let first = self.leaves[leaves.start];
             let split = D * D * (self.block_offsets[self.leaves[mid]] - self.block_offsets[first]);
+            let scratch_split = scratch_offsets.map_or(0, |o| o[mid] - o[leaves.start]);
             let (left, right) = values.split_at_mut(split);
+            let (left_scratch, right_scratch) = scratch.split_at_mut(scratch_split);
             rayon::join(
-                || self.leaves_range::<D, F>(leaves.start..mid, left, true, fill_column),
-                || self.leaves_range::<D, F>(mid..leaves.end, right, true, fill_column),
+                || {
+                    let leaves = leaves.start..mid;
+                    self.leaves_range::<D, T, F>(
+                        leaves,
+                        left,
+                        left_scratch,
+                        scratch_offsets,
+                        true,
+                        fill_leaf,
+                    )
+                },
+                || {
+                    let leaves = mid..leaves.end;
+                    self.leaves_range::<D, T, F>(
+                        leaves,
+                        right,
+                        right_scratch,
+                        scratch_offsets,
+                        true,
+                        fill_leaf,
+                    )
+                },
             );
         }
     }

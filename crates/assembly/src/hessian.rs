@@ -21,12 +21,13 @@
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use hooke_mesh::Spring;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::ops::Range;
 
 use nalgebra::SVector;
 
 use crate::forces::PARALLEL_THRESHOLD;
-use crate::graph::{BlockGraph, Contribution, Reuse};
+use crate::graph::{BlockGraph, Contribution};
+use crate::schedule::{Gather, RefillSchedule};
 use crate::spring::{Definiteness, HessianTerms};
 use crate::FreeDofs;
 
@@ -59,6 +60,7 @@ impl Default for HessianParams {
 #[derive(Clone, Debug)]
 pub struct HessianPattern<const D: usize> {
     graph: BlockGraph,
+    schedule: RefillSchedule,
     symbolic: SymbolicSparseColMat<usize>,
 }
 
@@ -86,7 +88,12 @@ impl<const D: usize> HessianPattern<D> {
         };
         let graph = BlockGraph::new(vertex_count, springs, free);
         let symbolic = graph.symbolic::<D>();
-        HessianPattern { graph, symbolic }
+        let schedule = RefillSchedule::new(&graph);
+        HessianPattern {
+            graph,
+            schedule,
+            symbolic,
+        }
     }
 
     /// The free-DOF map the pattern was built on.
@@ -152,13 +159,13 @@ impl<const D: usize> HessianPattern<D> {
         SparseColMat::new(self.symbolic.clone(), values.to_vec())
     }
 
-    /// A workspace for [`HessianPattern::assemble_into`] (one packed symmetric block per spring,
-    /// 48 bytes). Allocate it once and reuse it for every refill.
+    /// A workspace for [`HessianPattern::assemble_into`]: the ring buffers where spring blocks wait
+    /// for their second end (48 bytes a block; a few thousand blocks per parallel task on meshes
+    /// with a banded numbering, at most one per spring). Allocate it once and reuse it for every
+    /// refill.
     pub fn workspace(&self) -> HessianWorkspace<D> {
         HessianWorkspace {
-            blocks: (0..self.graph.spring_count())
-                .map(|_| Default::default())
-                .collect(),
+            ring: vec![[0.0; PACKED]; self.schedule.ring_len()],
         }
     }
 
@@ -168,10 +175,12 @@ impl<const D: usize> HessianPattern<D> {
     /// [`hessian_block`](crate::spring::hessian_block) of the spring with `params.definiteness`.
     ///
     /// No allocation. Each block column gathers the blocks of its springs in increasing spring
-    /// order and writes its values; a spring's block −h² H_s is computed once, by its first free end,
-    /// and kept in `workspace` for the second (computed again only where the two ends fall in
-    /// different parallel tasks). Every stored value is thus a sum in a fixed order, the same for (v, w) and
-    /// (w, v): the matrix is exactly symmetric, and serial and parallel refills give the same bits.
+    /// order and writes its values, in column order (the writes stream through the value array);
+    /// a spring's block −h² H_s is computed once, by its first free end, a few springs at a time
+    /// (vectorised), and kept in a small ring buffer in `workspace` for the second (computed again
+    /// only where the two ends fall in different parallel tasks; see the `schedule` module). Every
+    /// stored value is thus a sum in a fixed order, the same for (v, w) and (w, v): the matrix is
+    /// exactly symmetric, and serial and parallel refills give the same bits.
     ///
     /// `springs` must be those the pattern was built with (same ends, in the same order; stiffness
     /// and rest length may change). `positions` and `masses` (kg, ≥ 0; those of pinned vertices are
@@ -210,8 +219,8 @@ impl<const D: usize> HessianPattern<D> {
             "assemble_into: one mass per vertex"
         );
         assert_eq!(
-            workspace.blocks.len(),
-            springs.len(),
+            workspace.ring.len(),
+            self.schedule.ring_len(),
             "assemble_into: the workspace was made for another pattern"
         );
         assert_eq!(
@@ -220,67 +229,33 @@ impl<const D: usize> HessianPattern<D> {
             "assemble_into: one value per stored entry"
         );
         let parallel = params.parallel && springs.len() >= PARALLEL_THRESHOLD;
-        let definiteness = params.definiteness;
-        let h2 = h * h;
-        let kept = &workspace.blocks[..];
-        let graph = &self.graph;
-        let fill = |column: usize, out: &mut [f64]| {
-            let column_len = D * graph.column_blocks(column).len();
-            let vertex = free.free_vertices()[column] as usize;
-            // Σ (−h² H_s) over the springs at this vertex.
-            let mut sum = [0.0; PACKED];
-            for c in graph.contributions(column) {
-                let spring = &springs[c.spring as usize];
-                debug_assert!(
-                    {
-                        let (i, j) = spring.ends();
-                        i == vertex || j == vertex
-                    },
-                    "spring {} moved",
-                    c.spring
-                );
-                let slot = &kept[c.spring as usize];
-                let packed = if c.reuse == Reuse::Kept {
-                    std::array::from_fn(|e| f64::from_bits(slot[e].load(Ordering::Relaxed)))
-                } else {
-                    let packed = spring_block(spring, positions, definiteness, h2);
-                    if c.reuse == Reuse::ComputeAndKeep {
-                        for (k, v) in slot.iter().zip(&packed) {
-                            k.store(v.to_bits(), Ordering::Relaxed);
-                        }
-                    }
-                    packed
-                };
-                for (acc, v) in sum.iter_mut().zip(&packed).take(PACKED_LEN[D]) {
-                    *acc += v;
-                }
-                if c.slot != Contribution::PINNED_OTHER {
-                    let at = D * c.slot as usize;
-                    for b in 0..D {
-                        let dst = &mut out[b * column_len + at..][..D];
-                        if c.first {
-                            for (a, d) in dst.iter_mut().enumerate() {
-                                *d = packed[packed_index::<D>(a, b)];
-                            }
-                        } else {
-                            for (a, d) in dst.iter_mut().enumerate() {
-                                *d += packed[packed_index::<D>(a, b)];
-                            }
-                        }
-                    }
-                }
-            }
-            let at = D * graph.diagonal_slot(column);
-            let mass = masses[vertex];
-            for b in 0..D {
-                let dst = &mut out[b * column_len + at..][..D];
-                for (a, d) in dst.iter_mut().enumerate() {
-                    *d = -sum[packed_index::<D>(a, b)];
-                }
-                dst[b] += mass;
-            }
+        let refill = Refill {
+            graph: &self.graph,
+            schedule: &self.schedule,
+            springs,
+            positions,
+            masses,
+            h2: h * h,
         };
-        graph.for_each_column::<D, _>(values, parallel, &fill);
+        let ring_offsets = Some(self.schedule.ring_offsets());
+        let ring = &mut workspace.ring;
+        // One copy of the loop per variant, so that the choice is not made per spring.
+        match params.definiteness {
+            Definiteness::Exact => {
+                let fill = |columns, values: &mut [f64], ring: &mut [[f64; PACKED]]| {
+                    refill.leaf::<false>(columns, values, ring)
+                };
+                self.graph
+                    .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
+            }
+            Definiteness::Clamped => {
+                let fill = |columns, values: &mut [f64], ring: &mut [[f64; PACKED]]| {
+                    refill.leaf::<true>(columns, values, ring)
+                };
+                self.graph
+                    .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
+            }
+        }
     }
 
     /// Add the velocity Jacobian of the dashpot damping along every spring, scaled: for each spring
@@ -429,41 +404,208 @@ fn dashpot_block<const D: usize>(r: &SVector<f64, D>, factor: f64) -> [f64; PACK
     packed
 }
 
-/// Scratch memory of [`HessianPattern::assemble_into`]: room for −h² H_s of every spring (packed
-/// upper triangle), where the first end of a spring keeps its block for the second. Made by
-/// [`HessianPattern::workspace`]; its contents between calls mean nothing. (The entries are atomics
-/// only so that parallel tasks can share the buffer without `unsafe`: each entry is written and read
-/// by one task, with relaxed ordering, which costs the same as plain loads and stores.)
-#[derive(Debug)]
+/// Scratch memory of [`HessianPattern::assemble_into`]: ring buffers of spring blocks −h² H_s
+/// (packed upper triangle), one per parallel task, where the first end of a spring keeps its block
+/// for the second. Made by [`HessianPattern::workspace`]; its contents between calls mean nothing.
+#[derive(Clone, Debug)]
 pub struct HessianWorkspace<const D: usize> {
-    blocks: Vec<[AtomicU64; PACKED]>,
+    ring: Vec<[f64; PACKED]>,
 }
 
-/// −h² H_s of one spring, packed upper triangle.
-#[inline]
-fn spring_block<const D: usize>(
-    s: &Spring,
-    positions: &[SVector<f64, D>],
-    definiteness: Definiteness,
+/// The state of one refill, shared by the parallel tasks.
+struct Refill<'a, const D: usize> {
+    graph: &'a BlockGraph,
+    schedule: &'a RefillSchedule,
+    springs: &'a [Spring],
+    positions: &'a [SVector<f64, D>],
+    masses: &'a [f64],
     h2: f64,
-) -> [f64; PACKED] {
-    let (i, j) = s.ends();
-    let t = HessianTerms::new(
-        s.stiffness,
-        s.rest_length,
-        &(positions[i] - positions[j]),
-        definiteness,
-    );
-    let (p, q) = (-h2 * t.along, -h2 * t.across);
-    let mut packed = [0.0; PACKED];
-    for b in 0..D {
-        for a in 0..=b {
-            packed[packed_index::<D>(a, b)] = p * (t.unit[a] * t.unit[b]);
-        }
-        packed[packed_index::<D>(b, b)] += q;
-    }
-    packed
 }
+
+impl<const D: usize> Refill<'_, D> {
+    /// Fill the values of the leaf `columns` (see [`RefillSchedule`]): spring blocks are computed
+    /// [`BATCH`] at a time, up to `BATCH − 1` computes ahead of the column that needs them (the ring
+    /// has that much slack), then each column gathers its blocks from the ring.
+    fn leaf<const CLAMPED: bool>(
+        &self,
+        columns: Range<usize>,
+        values: &mut [f64],
+        ring: &mut [[f64; PACKED]],
+    ) {
+        let schedule = self.schedule;
+        let computes = schedule.computes(columns.clone());
+        let first_compute = schedule.compute_range(columns.clone()).start;
+        // Computes done so far in this leaf; compute k writes ring slot k mod R, and R is a
+        // multiple of BATCH, so a batch starting at a multiple of BATCH writes consecutive slots.
+        let (mut done, mut slot) = (0, 0);
+        let mut rest = values;
+        for column in columns {
+            let vertex = self.graph.free().free_vertices()[column] as usize;
+            debug_assert!(
+                schedule.computes(column..column + 1).iter().all(|&s| {
+                    let (i, j) = self.springs[s as usize].ends();
+                    i == vertex || j == vertex
+                }),
+                "a spring at column {column} moved"
+            );
+            let needed = schedule.compute_range(column..column + 1).end - first_compute;
+            while done < needed {
+                if let Some(batch) = computes.get(done..done + BATCH) {
+                    let batch: &[u32; BATCH] = batch.try_into().expect("BATCH springs");
+                    let out: &mut [[f64; PACKED]; BATCH] = (&mut ring[slot..slot + BATCH])
+                        .try_into()
+                        .expect("BATCH slots");
+                    self.blocks::<BATCH, CLAMPED>(batch, out);
+                    done += BATCH;
+                    slot += BATCH;
+                } else {
+                    // The last few computes of the leaf.
+                    let out: &mut [[f64; PACKED]; 1] =
+                        (&mut ring[slot..slot + 1]).try_into().expect("one slot");
+                    self.blocks::<1, CLAMPED>(&[computes[done]], out);
+                    done += 1;
+                    slot += 1;
+                }
+                if slot == ring.len() {
+                    slot = 0;
+                }
+            }
+            let column_len = D * self.graph.column_blocks(column).len();
+            let (out, tail) = std::mem::take(&mut rest).split_at_mut(D * column_len);
+            rest = tail;
+            self.gather(column, column_len, self.masses[vertex], ring, out);
+        }
+    }
+
+    /// Write the values of block column `column` (`column_len` values per scalar column) from the
+    /// blocks in `ring`, adding `mass` on the diagonal.
+    #[inline(always)]
+    fn gather(
+        &self,
+        column: usize,
+        column_len: usize,
+        mass: f64,
+        ring: &[[f64; PACKED]],
+        out: &mut [f64],
+    ) {
+        let (graph, schedule) = (self.graph, self.schedule);
+        // Σ (−h² H_s) over the springs at this vertex, in increasing spring order (packed: each
+        // entry once, so the diagonal block is exactly symmetric).
+        let mut sum = [0.0; PACKED];
+        for g in schedule.gathers(graph.contribution_range(column)) {
+            let packed = &ring[g.ring as usize];
+            for (acc, v) in sum.iter_mut().zip(packed).take(PACKED_LEN[D]) {
+                *acc += v;
+            }
+            if g.target != Gather::NO_TARGET {
+                let at = D * (g.target & !Gather::FIRST) as usize;
+                let first = g.target & Gather::FIRST != 0;
+                // One bounds check for the D scalar columns of the block.
+                let window = &mut out[at..at + (D - 1) * column_len + D];
+                for b in 0..D {
+                    let dst = &mut window[b * column_len..b * column_len + D];
+                    if first {
+                        for (a, d) in dst.iter_mut().enumerate() {
+                            *d = packed[packed_index::<D>(a, b)];
+                        }
+                    } else {
+                        for (a, d) in dst.iter_mut().enumerate() {
+                            *d += packed[packed_index::<D>(a, b)];
+                        }
+                    }
+                }
+            }
+        }
+        let at = D * graph.diagonal_slot(column);
+        for b in 0..D {
+            let dst = &mut out[b * column_len + at..][..D];
+            for (a, d) in dst.iter_mut().enumerate() {
+                *d = -sum[packed_index::<D>(a, b)];
+            }
+            dst[b] += mass;
+        }
+    }
+
+    /// −h² H_s of the springs `indices` into `out` (packed upper triangles): the arithmetic of
+    /// [`HessianTerms`], lane by lane over the N springs without branches so that it vectorises
+    /// (square roots and divisions included). Where a spring may have no direction or an
+    /// overflowing block (`HessianTerms` then substitutes its stand-in), the N springs are redone
+    /// one by one through `HessianTerms`. The same bits as one spring at a time.
+    #[inline(always)]
+    fn blocks<const N: usize, const CLAMPED: bool>(
+        &self,
+        indices: &[u32; N],
+        out: &mut [[f64; PACKED]; N],
+    ) {
+        let mut r = [[0.0; N]; D];
+        let mut length_squared = [0.0; N];
+        let mut stiffness = [0.0; N];
+        let mut rest_length = [0.0; N];
+        for n in 0..N {
+            let s = &self.springs[indices[n] as usize];
+            let (i, j) = s.ends();
+            let d = self.positions[i] - self.positions[j];
+            length_squared[n] = d.norm_squared();
+            for a in 0..D {
+                r[a][n] = d[a];
+            }
+            stiffness[n] = s.stiffness;
+            rest_length[n] = s.rest_length;
+        }
+        let (mut p, mut q) = ([0.0; N], [0.0; N]);
+        let mut unit = [[0.0; N]; D];
+        // Whether a lane may need the stand-in: some |r|² not positive, or something not finite
+        // (a finite sum of non-negative terms that overflows only makes the test cautious).
+        let (mut smallest, mut total) = (f64::INFINITY, 0.0);
+        for n in 0..N {
+            let l2 = length_squared[n];
+            let inverse_length = 1.0 / l2.sqrt();
+            let ratio = rest_length[n] * inverse_length;
+            let clamp = CLAMPED && ratio > 1.0;
+            let across = if clamp { 0.0 } else { 1.0 - ratio };
+            let along = if clamp { 1.0 } else { ratio };
+            let (along, across) = (stiffness[n] * along, stiffness[n] * across);
+            smallest = l2.min(smallest);
+            total += l2 + along.abs() + across.abs();
+            p[n] = -self.h2 * along;
+            q[n] = -self.h2 * across;
+            for a in 0..D {
+                unit[a][n] = r[a][n] * inverse_length;
+            }
+        }
+        for n in 0..N {
+            for b in 0..D {
+                for a in 0..=b {
+                    out[n][packed_index::<D>(a, b)] = p[n] * (unit[a][n] * unit[b][n]);
+                }
+                out[n][packed_index::<D>(b, b)] += q[n];
+            }
+        }
+        if !(smallest > 0.0 && total < f64::INFINITY) {
+            let definiteness = if CLAMPED {
+                Definiteness::Clamped
+            } else {
+                Definiteness::Exact
+            };
+            for n in 0..N {
+                let s = &self.springs[indices[n] as usize];
+                let (i, j) = s.ends();
+                let r = self.positions[i] - self.positions[j];
+                let t = HessianTerms::new(s.stiffness, s.rest_length, &r, definiteness);
+                let (p, q) = (-self.h2 * t.along, -self.h2 * t.across);
+                for b in 0..D {
+                    for a in 0..=b {
+                        out[n][packed_index::<D>(a, b)] = p * (t.unit[a] * t.unit[b]);
+                    }
+                    out[n][packed_index::<D>(b, b)] += q;
+                }
+            }
+        }
+    }
+}
+
+/// Springs whose blocks a refill computes together.
+pub(crate) const BATCH: usize = 4;
 
 /// Length of a packed symmetric block: D (D + 1) / 2 ≤ 6 for D ≤ 3.
 const PACKED: usize = 6;
@@ -1010,6 +1152,157 @@ mod tests {
         // Added, not written: a second call doubles the diagonal.
         pattern.add_vertex_diagonal(&per_vertex, &mut values);
         assert_eq!(dense(pattern.matrix(&values)), want * 2.0);
+    }
+
+    /// −h² (along · ûûᵀ + across · I), packed upper triangle.
+    #[inline(always)]
+    fn expand<const D: usize>(t: &HessianTerms<D>, h2: f64) -> [f64; PACKED] {
+        let (p, q) = (-h2 * t.along, -h2 * t.across);
+        let mut packed = [0.0; PACKED];
+        for b in 0..D {
+            for a in 0..=b {
+                packed[packed_index::<D>(a, b)] = p * (t.unit[a] * t.unit[b]);
+            }
+            packed[packed_index::<D>(b, b)] += q;
+        }
+        packed
+    }
+
+    /// −h² H_s of one spring, packed: the definition, one spring at a time.
+    fn spring_block<const D: usize>(
+        s: &Spring,
+        positions: &[SVector<f64, D>],
+        definiteness: Definiteness,
+        h2: f64,
+    ) -> [f64; PACKED] {
+        let (i, j) = s.ends();
+        let r = positions[i] - positions[j];
+        expand(
+            &HessianTerms::new(s.stiffness, s.rest_length, &r, definiteness),
+            h2,
+        )
+    }
+
+    /// The refill written the plain way, each column computing the blocks of all its springs
+    /// afresh: the definition the scheduled refill must reproduce bit for bit.
+    fn reference_values<const D: usize>(
+        pattern: &HessianPattern<D>,
+        springs: &[Spring],
+        positions: &[SVector<f64, D>],
+        masses: &[f64],
+        h: f64,
+        definiteness: Definiteness,
+    ) -> Vec<f64> {
+        let graph = &pattern.graph;
+        let mut values = pattern.new_values();
+        let fill = |column: usize, out: &mut [f64]| {
+            let column_len = D * graph.column_blocks(column).len();
+            let mut sum = [0.0; PACKED];
+            for c in graph.contributions(column) {
+                let packed =
+                    spring_block(&springs[c.spring as usize], positions, definiteness, h * h);
+                for (acc, v) in sum.iter_mut().zip(&packed).take(PACKED_LEN[D]) {
+                    *acc += v;
+                }
+                if c.slot != Contribution::PINNED_OTHER {
+                    for b in 0..D {
+                        for a in 0..D {
+                            let d = &mut out[b * column_len + D * c.slot as usize + a];
+                            let v = packed[packed_index::<D>(a, b)];
+                            *d = if c.first { v } else { *d + v };
+                        }
+                    }
+                }
+            }
+            let at = D * graph.diagonal_slot(column);
+            let vertex = graph.free().free_vertices()[column] as usize;
+            for b in 0..D {
+                for a in 0..D {
+                    out[b * column_len + at + a] = -sum[packed_index::<D>(a, b)];
+                }
+                out[b * column_len + at + b] += masses[vertex];
+            }
+        };
+        graph.for_each_column::<D, _>(&mut values, false, &fill);
+        values
+    }
+
+    #[test]
+    fn scheduled_refill_equals_the_plain_refill_bit_for_bit() {
+        // cloth-100 with pins (16 leaves: blocks kept within a leaf, recomputed across leaves and
+        // at pinned ends), a beam, duplicate springs, and the 2D seed scene.
+        let check = |name: &str, values: &[f64], reference: &[f64]| {
+            assert!(
+                values
+                    .iter()
+                    .zip(reference)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{name}: the refill differs from the plain definition"
+            );
+        };
+        for (mesh, pinned) in [
+            (cloth(100, 1e3).unwrap(), vec![0, 99, 5000]),
+            (beam(2).unwrap(), vec![3]),
+            (cloth(5, 1.0).unwrap(), vec![]),
+        ] {
+            let x = wobble(mesh.positions(), 0.002);
+            let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+            let mut springs = mesh.springs().to_vec();
+            springs.extend_from_slice(&mesh.springs()[..3]); // parallel springs
+            let pattern = HessianPattern::<3>::new(mesh.vertex_count(), &springs, Some(&free));
+            let mut workspace = pattern.workspace();
+            for definiteness in [Definiteness::Exact, Definiteness::Clamped] {
+                for parallel in [false, true] {
+                    let mut values = vec![f64::NAN; pattern.nnz()];
+                    let params = HessianParams {
+                        definiteness,
+                        parallel,
+                    };
+                    pattern.assemble_into(
+                        &springs,
+                        &x,
+                        mesh.masses(),
+                        0.01,
+                        params,
+                        &mut workspace,
+                        &mut values,
+                    );
+                    let reference =
+                        reference_values(&pattern, &springs, &x, mesh.masses(), 0.01, definiteness);
+                    check(
+                        &format!(
+                            "{} vertices, {definiteness:?}, parallel {parallel}",
+                            mesh.vertex_count()
+                        ),
+                        &values,
+                        &reference,
+                    );
+                }
+            }
+        }
+        let mesh = hooke_mesh::generators::seed_2d().unwrap();
+        let free = FreeDofs::new(mesh.vertex_count(), &[0]).unwrap();
+        let pattern = HessianPattern::<2>::new(mesh.vertex_count(), mesh.springs(), Some(&free));
+        let mut values = pattern.new_values();
+        let params = HessianParams::default();
+        pattern.assemble_into(
+            mesh.springs(),
+            mesh.positions(),
+            mesh.masses(),
+            0.01,
+            params,
+            &mut pattern.workspace(),
+            &mut values,
+        );
+        let reference = reference_values(
+            &pattern,
+            mesh.springs(),
+            mesh.positions(),
+            mesh.masses(),
+            0.01,
+            Definiteness::Exact,
+        );
+        check("seed-2d", &values, &reference);
     }
 
     #[test]

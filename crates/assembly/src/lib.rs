@@ -22,6 +22,7 @@ pub mod hessian;
 #[cfg(any(feature = "nalgebra-sparse", feature = "sprs"))]
 pub mod interop;
 pub mod pd;
+mod schedule;
 pub mod spring;
 
 pub use counter_force::CounterForce;

@@ -132,7 +132,7 @@ impl<const D: usize> HessianTerms<D> {
     /// As [`HessianTerms::new`], given |r|² and 1/|r| = 1/√|r|² (computed by the caller, e.g. for
     /// several springs at once so that the square roots and divisions overlap; IEEE square root and
     /// division are correctly rounded, so the result is the same bits either way).
-    #[inline]
+    #[inline(always)]
     pub fn with_inverse_length(
         stiffness: f64,
         rest_length: f64,
