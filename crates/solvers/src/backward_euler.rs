@@ -12,7 +12,14 @@ use crate::NewtonProblem;
 /// One backward Euler step as a [`NewtonProblem`]: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) over the
 /// free DOFs (D per free vertex, numbered as in [`FreeDofs`]), with the Hessian assembled by
 /// [`HessianPattern`] into a fixed pattern. Pinned vertices are held where [`BackwardEulerStep::set_step`]
-/// puts them. Every buffer is allocated here, once.
+/// puts them. Every buffer is allocated here, once (the dashpot's on its first use).
+///
+/// Forces linear in velocity and position fold into M and y exactly (the caller passes the
+/// effective masses and target; see hooke-sim's implicit integrator). Dashpot damping along the
+/// springs, f_i = −c ((v_i − v_j)·d) d, does not: with v = (x − x_n)/h and the direction d frozen at
+/// the step's start x_n, h² times it is −∇Ψ of the dissipation potential
+/// Ψ(x) = (h c / 2) Σ_s ((Δx_i − Δx_j)·d_s)², Δx = x − x_n, which
+/// [`BackwardEulerStep::set_dashpot`] adds to Φ (value, gradient and Hessian h c d dᵀ blocks).
 #[derive(Debug)]
 pub struct BackwardEulerStep<const D: usize> {
     free: FreeDofs,
@@ -32,6 +39,11 @@ pub struct BackwardEulerStep<const D: usize> {
     x: Vec<SVector<f64, D>>,
     /// Full positions of a line-search trial point.
     trial_positions: Vec<SVector<f64, D>>,
+    /// Dashpot coefficient c (N·s/m; 0: none), the step's start x_n and each spring's direction
+    /// there (zero for a spring of zero length).
+    dashpot: f64,
+    dashpot_start: Vec<SVector<f64, D>>,
+    dashpot_directions: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> BackwardEulerStep<D> {
@@ -62,6 +74,9 @@ impl<const D: usize> BackwardEulerStep<D> {
             y: vec![SVector::zeros(); n],
             x: vec![SVector::zeros(); n],
             trial_positions: vec![SVector::zeros(); n],
+            dashpot: 0.0,
+            dashpot_start: Vec::new(),
+            dashpot_directions: Vec::new(),
             free,
             pattern,
         }
@@ -84,6 +99,54 @@ impl<const D: usize> BackwardEulerStep<D> {
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             unknowns[D * f..D * f + D].copy_from_slice(self.y[v as usize].as_slice());
         }
+    }
+
+    /// Add the dashpot dissipation potential Ψ (see the type's documentation) with coefficient
+    /// `coefficient` (N·s/m, ≥ 0; 0 removes it) and the step's start positions `start` (m, one per
+    /// vertex), from which the spring directions are taken. Call it after
+    /// [`BackwardEulerStep::set_step`] on every step.
+    ///
+    /// # Panics
+    /// If `start` does not have one position per vertex, or the coefficient is negative or NaN.
+    #[track_caller]
+    pub fn set_dashpot(&mut self, coefficient: f64, start: &[SVector<f64, D>]) {
+        assert!(
+            coefficient >= 0.0,
+            "the dashpot coefficient must be ≥ 0, got {coefficient}"
+        );
+        assert_eq!(start.len(), self.x.len(), "one start position per vertex");
+        self.dashpot = coefficient;
+        if coefficient == 0.0 {
+            return;
+        }
+        if self.dashpot_directions.len() != self.springs.len() {
+            self.dashpot_directions = vec![SVector::zeros(); self.springs.len()];
+            self.dashpot_start = vec![SVector::zeros(); start.len()];
+        }
+        self.dashpot_start.copy_from_slice(start);
+        for (d, spring) in self.dashpot_directions.iter_mut().zip(&self.springs) {
+            let (i, j) = spring.ends();
+            *d = hooke_assembly::spring::direction(&(start[i] - start[j]))
+                .map_or(SVector::zeros(), |(unit, _)| unit);
+        }
+    }
+
+    /// (Δx_i − Δx_j)·d for spring `s` at full positions `x`.
+    fn dashpot_stretch(&self, s: usize, x: &[SVector<f64, D>]) -> f64 {
+        let (i, j) = self.springs[s].ends();
+        let start = &self.dashpot_start;
+        ((x[i] - start[i]) - (x[j] - start[j])).dot(&self.dashpot_directions[s])
+    }
+
+    /// Ψ at the full positions `x`.
+    fn dashpot_potential(&self, x: &[SVector<f64, D>]) -> f64 {
+        if self.dashpot == 0.0 {
+            return 0.0;
+        }
+        let sum = hooke_assembly::deterministic_sum(self.springs.len(), true, |s| {
+            self.dashpot_stretch(s, x).powi(2)
+        });
+        0.5 * self.h * self.dashpot * sum
     }
 
     /// Which spring Hessian [`NewtonProblem::hessian`] assembles: [`Definiteness::Exact`] (the
@@ -128,7 +191,9 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
             })
             .sum();
-        inertia + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, true)
+        inertia
+            + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, true)
+            + self.dashpot_potential(&self.x)
     }
 
     /// Φ(trial) − Φ(x) term by term, so that its round-off is relative to the change rather than to
@@ -163,7 +228,20 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             let difference = (r_t - r_x).dot(&(r_t + r_x)) / sum;
             0.5 * spring.stiffness * difference * (sum - 2.0 * spring.rest_length)
         });
-        inertia + self.h * self.h * energy
+        let dashpot = if self.dashpot == 0.0 {
+            0.0
+        } else {
+            let this = &*self;
+            let sum = hooke_assembly::deterministic_sum(this.springs.len(), true, |s| {
+                let (a_x, a_t) = (
+                    this.dashpot_stretch(s, &this.x),
+                    this.dashpot_stretch(s, &this.trial_positions),
+                );
+                (a_t - a_x) * (a_t + a_x)
+            });
+            0.5 * this.h * this.dashpot * sum
+        };
+        inertia + self.h * self.h * energy + dashpot
     }
 
     fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
@@ -171,6 +249,16 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         self.forces
             .compute(&self.springs, &self.x, None, &mut self.force, true);
         let h2 = self.h * self.h;
+        if self.dashpot > 0.0 {
+            // h² times the dashpot force, −∇Ψ, scattered serially in spring order (deterministic).
+            let scale = self.h * self.dashpot / h2;
+            for s in 0..self.springs.len() {
+                let (i, j) = self.springs[s].ends();
+                let f = self.dashpot_directions[s] * (scale * self.dashpot_stretch(s, &self.x));
+                self.force[i] -= f;
+                self.force[j] += f;
+            }
+        }
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
             let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
@@ -196,6 +284,16 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             &mut self.workspace,
             &mut self.values,
         );
+        if self.dashpot > 0.0 {
+            // ∇²Ψ = h c d dᵀ blocks, directions from the step's start.
+            self.pattern.add_dashpot_into(
+                &self.springs,
+                &self.dashpot_start,
+                self.dashpot,
+                self.h,
+                &mut self.values,
+            );
+        }
         self.pattern.matrix(&self.values)
     }
 

@@ -194,3 +194,125 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
         "the run buckles: some steps must have come from an indefinite Hessian"
     );
 }
+
+/// The dashpot dissipation potential Ψ added by `set_dashpot`: its gradient and Hessian against
+/// central differences, the exact objective change against the plain difference, and the Newton
+/// solution against the backward Euler equation with the dashpot force written out.
+#[test]
+fn the_dashpot_term_is_consistent_and_enters_the_step() {
+    use hooke_assembly::fd;
+    let n = 5;
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let pinned = [0u32, n as u32 - 1];
+    let h = 1.0 / 30.0;
+    let c = 0.7; // N·s/m
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let x_n: Vec<V> = mesh
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(v, p)| p + V::new(0.01 * (v as f64).sin(), 0.02 * (v as f64 * 0.7).cos(), 0.0))
+        .collect();
+    let y: Vec<V> = x_n
+        .iter()
+        .enumerate()
+        .map(|(v, p)| {
+            if pinned.contains(&(v as u32)) {
+                *p
+            } else {
+                p + V::new(0.05, -0.03, 0.02) * (1.0 + 0.1 * v as f64).sin()
+            }
+        })
+        .collect();
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
+    let mut xf = vec![0.0; step.dim()];
+    step.set_step(&y, &x_n, &mut xf);
+    step.set_dashpot(c, &x_n);
+    let dim = step.dim();
+    // A point between x_n and y, so every term is non-trivial.
+    let x0: Vec<f64> = xf
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| v - 0.3 * (k as f64 * 0.37).sin() * 1e-2)
+        .collect();
+
+    // Gradient: central differences with a step of 1e-6 m on positions of size ~1 m: truncation
+    // ~1e-12 relative, round-off ~ε|Φ|/1e-6; 1e-6 of the gradient's norm bounds both.
+    let cell = std::cell::RefCell::new(&mut step);
+    let numeric = fd::gradient(|x| cell.borrow_mut().objective(x), &x0, 1e-6);
+    let mut g = vec![0.0; dim];
+    cell.borrow_mut().gradient(&x0, &mut g);
+    let g_norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let g_error = g
+        .iter()
+        .zip(&numeric)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(
+        g_error <= 1e-6 * g_norm,
+        "gradient vs differences: {g_error:e} (|g| = {g_norm:e})"
+    );
+    // Hessian: differences of the gradient, same reasoning on the Hessian's scale.
+    let numeric = fd::jacobian(|x, out| cell.borrow_mut().gradient(x, out), &x0, dim, 1e-6);
+    let mut step = cell.into_inner();
+    let analytic = step.hessian(&x0).to_dense();
+    let scale = numeric.norm();
+    let mut h_error = 0.0f64;
+    for r in 0..dim {
+        for col in 0..dim {
+            h_error = h_error.max((analytic[(r, col)] - numeric[(r, col)]).abs());
+        }
+    }
+    assert!(
+        h_error <= 1e-6 * scale,
+        "Hessian vs differences: {h_error:e} (|H| = {scale:e})"
+    );
+    // The exact change equals the plain difference where the latter is accurate (a large step).
+    let trial: Vec<f64> = x0.iter().map(|v| v + 1e-3).collect();
+    let exact = step.objective_change(&x0, &trial);
+    let plain = step.objective(&trial) - step.objective(&x0);
+    assert!(
+        (exact - plain).abs() <= 1e-9 * plain.abs(),
+        "objective change {exact:e} vs difference {plain:e}"
+    );
+
+    // Newton's solution satisfies M (x − y) = h² (f_spring(x) + f_dashpot), with the dashpot force
+    // −c ((v_i − v_j)·d) d at v = (x − x_n)/h and d the spring direction at x_n.
+    let mut newton = Newton::new(
+        step.pattern(),
+        NewtonParams {
+            tolerance: 1e-12,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let report = newton.minimize(step, &mut xf).unwrap();
+    assert!(report.gradient() <= 1e-11, "{report:#?}");
+    let x = step.positions(&xf).to_vec();
+    let mut force = vec![V::zeros(); x.len()];
+    let mut largest = 0.0f64;
+    for s in mesh.springs() {
+        let (i, j) = s.ends();
+        let f = hooke_assembly::spring::force(s.stiffness, s.rest_length, &(x[i] - x[j]));
+        let d = (x_n[i] - x_n[j]).normalize();
+        let v_rel = ((x[i] - x_n[i]) - (x[j] - x_n[j])) / h;
+        let damping = d * (-c * v_rel.dot(&d));
+        force[i] += f + damping;
+        force[j] -= f + damping;
+        largest = largest.max(f.norm()).max(damping.norm());
+    }
+    for v in 0..x.len() {
+        if pinned.contains(&(v as u32)) {
+            continue;
+        }
+        let residual = (x[v] - y[v]) * mesh.masses()[v] - force[v] * (h * h);
+        // Newton stopped at 1e-12 of the initial gradient; the force terms are summed here in another
+        // order: 1e-9 of the largest h²-scaled force term bounds both.
+        assert!(
+            residual.norm() <= 1e-9 * largest * h * h,
+            "vertex {v}: residual {:e}",
+            residual.norm()
+        );
+    }
+}
