@@ -255,7 +255,7 @@ fn the_dashpot_term_is_consistent_and_enters_the_step() {
     );
     // Hessian: differences of the gradient, same reasoning on the Hessian's scale.
     let numeric = fd::jacobian(|x, out| cell.borrow_mut().gradient(x, out), &x0, dim, 1e-6);
-    let mut step = cell.into_inner();
+    let step = cell.into_inner();
     let analytic = step.hessian(&x0).to_dense();
     let scale = numeric.norm();
     let mut h_error = 0.0f64;
