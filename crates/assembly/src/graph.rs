@@ -12,7 +12,7 @@
 
 use std::ops::Range;
 
-use faer::sparse::SymbolicSparseColMat;
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use hooke_mesh::Spring;
 
 use crate::FreeDofs;
@@ -377,6 +377,58 @@ impl BlockGraph {
             );
         }
     }
+}
+
+/// The block graph of `springs` over `vertex_count` vertices on the free vertices of `free` (all if
+/// `None`), and the symbolic CSC structure of its scalar matrix with D×D blocks: the construction
+/// [`crate::HessianPattern`] and [`crate::LaplacianPattern`] share.
+///
+/// # Panics
+/// As [`BlockGraph::new`].
+#[track_caller]
+pub(crate) fn block_pattern<const D: usize>(
+    vertex_count: usize,
+    springs: &[Spring],
+    free: Option<&FreeDofs>,
+) -> (BlockGraph, SymbolicSparseColMat<usize>) {
+    let graph = match free {
+        Some(free) => BlockGraph::new(vertex_count, springs, free),
+        None => BlockGraph::new(vertex_count, springs, &FreeDofs::all_free(vertex_count)),
+    };
+    let symbolic = graph.symbolic::<D>();
+    (graph, symbolic)
+}
+
+/// `values` on the structure `symbolic`, borrowed (no copy).
+///
+/// # Panics
+/// If there is not one value per stored entry; the message starts with `what` (the caller's name).
+#[track_caller]
+pub(crate) fn matrix_ref<'a>(
+    symbolic: &'a SymbolicSparseColMat<usize>,
+    values: &'a [f64],
+    what: &str,
+) -> SparseColMatRef<'a, usize, f64> {
+    assert_eq!(
+        values.len(),
+        symbolic.row_idx().len(),
+        "{what}: one value per stored entry"
+    );
+    SparseColMatRef::new(symbolic.as_ref(), values)
+}
+
+/// An owned copy of `values` on the structure `symbolic` (allocates).
+///
+/// # Panics
+/// As [`matrix_ref`].
+#[track_caller]
+pub(crate) fn matrix_owned(
+    symbolic: &SymbolicSparseColMat<usize>,
+    values: &[f64],
+    what: &str,
+) -> SparseColMat<usize, f64> {
+    matrix_ref(symbolic, values, what);
+    SparseColMat::new(symbolic.clone(), values.to_vec())
 }
 
 /// About this many leaves on large meshes, to balance the load over a few threads.

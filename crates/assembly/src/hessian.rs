@@ -26,7 +26,7 @@ use std::ops::Range;
 use nalgebra::SVector;
 
 use crate::forces::PARALLEL_THRESHOLD;
-use crate::graph::{BlockGraph, Contribution};
+use crate::graph::{block_pattern, matrix_owned, matrix_ref, BlockGraph, Contribution};
 use crate::schedule::{Gather, RefillSchedule};
 use crate::spring::{Definiteness, HessianTerms};
 use crate::FreeDofs;
@@ -78,16 +78,7 @@ impl<const D: usize> HessianPattern<D> {
     pub fn new(vertex_count: usize, springs: &[Spring], free: Option<&FreeDofs>) -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::DIMENSION_IS_1_TO_3;
-        let all;
-        let free = match free {
-            Some(free) => free,
-            None => {
-                all = FreeDofs::all_free(vertex_count);
-                &all
-            }
-        };
-        let graph = BlockGraph::new(vertex_count, springs, free);
-        let symbolic = graph.symbolic::<D>();
+        let (graph, symbolic) = block_pattern::<D>(vertex_count, springs, free);
         let schedule = RefillSchedule::new(&graph);
         HessianPattern {
             graph,
@@ -137,12 +128,7 @@ impl<const D: usize> HessianPattern<D> {
     /// If `values.len()` is not [`HessianPattern::nnz`].
     #[track_caller]
     pub fn matrix<'a>(&'a self, values: &'a [f64]) -> SparseColMatRef<'a, usize, f64> {
-        assert_eq!(
-            values.len(),
-            self.nnz(),
-            "HessianPattern::matrix: one value per stored entry"
-        );
-        SparseColMatRef::new(self.symbolic.as_ref(), values)
+        matrix_ref(&self.symbolic, values, "HessianPattern::matrix")
     }
 
     /// An owned copy of the matrix with the values `values` (allocates; for one-off use).
@@ -151,12 +137,7 @@ impl<const D: usize> HessianPattern<D> {
     /// If `values.len()` is not [`HessianPattern::nnz`].
     #[track_caller]
     pub fn to_sparse_col_mat(&self, values: &[f64]) -> SparseColMat<usize, f64> {
-        assert_eq!(
-            values.len(),
-            self.nnz(),
-            "HessianPattern::to_sparse_col_mat: one value per stored entry"
-        );
-        SparseColMat::new(self.symbolic.clone(), values.to_vec())
+        matrix_owned(&self.symbolic, values, "HessianPattern::to_sparse_col_mat")
     }
 
     /// A workspace for [`HessianPattern::assemble_into`]: the ring buffers where spring blocks wait

@@ -19,7 +19,7 @@ use nalgebra::SVector;
 use rayon::prelude::*;
 
 use crate::forces::{Incidence, PARALLEL_THRESHOLD};
-use crate::graph::{BlockGraph, Contribution};
+use crate::graph::{block_pattern, matrix_owned, matrix_ref, BlockGraph, Contribution};
 use crate::spring::direction;
 use crate::FreeDofs;
 
@@ -47,16 +47,7 @@ impl LaplacianPattern {
     /// another vertex count.
     #[track_caller]
     pub fn new(vertex_count: usize, springs: &[Spring], free: Option<&FreeDofs>) -> Self {
-        let all;
-        let free = match free {
-            Some(free) => free,
-            None => {
-                all = FreeDofs::all_free(vertex_count);
-                &all
-            }
-        };
-        let graph = BlockGraph::new(vertex_count, springs, free);
-        let symbolic = graph.symbolic::<1>();
+        let (graph, symbolic) = block_pattern::<1>(vertex_count, springs, free);
         LaplacianPattern { graph, symbolic }
     }
 
@@ -91,12 +82,7 @@ impl LaplacianPattern {
     /// If `values.len()` is not [`LaplacianPattern::nnz`].
     #[track_caller]
     pub fn matrix<'a>(&'a self, values: &'a [f64]) -> SparseColMatRef<'a, usize, f64> {
-        assert_eq!(
-            values.len(),
-            self.nnz(),
-            "LaplacianPattern::matrix: one value per stored entry"
-        );
-        SparseColMatRef::new(self.symbolic.as_ref(), values)
+        matrix_ref(&self.symbolic, values, "LaplacianPattern::matrix")
     }
 
     /// An owned copy of the matrix with `values` (allocates).
@@ -105,12 +91,11 @@ impl LaplacianPattern {
     /// If `values.len()` is not [`LaplacianPattern::nnz`].
     #[track_caller]
     pub fn to_sparse_col_mat(&self, values: &[f64]) -> SparseColMat<usize, f64> {
-        assert_eq!(
-            values.len(),
-            self.nnz(),
-            "LaplacianPattern::to_sparse_col_mat: one value per stored entry"
-        );
-        SparseColMat::new(self.symbolic.clone(), values.to_vec())
+        matrix_owned(
+            &self.symbolic,
+            values,
+            "LaplacianPattern::to_sparse_col_mat",
+        )
     }
 
     /// Fill `values` with K (diag(masses) + scale · L) Kᵀ: diagonal entry of free vertex v
