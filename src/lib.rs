@@ -6,10 +6,13 @@
 //! - [`mesh`]: triangle and tetrahedral meshes, spring graphs, lumped masses, generators, mesh files;
 //! - [`assembly`]: spring energies, forces and their derivatives;
 //! - [`solvers`]: linear and nonlinear solvers;
-//! - [`sim`]: scenes, forces, damping, contact and time integration.
+//! - [`sim`]: scenes, forces, damping, contact and time integration;
+//! - [`bench`]: speed against error (SPEC §8), the library behind `hooke bench`.
 //!
 //! The `hooke` command-line program runs scenes and writes frames, a summary and a preview.
 #![deny(missing_docs)]
+
+pub mod bench;
 
 pub use hooke_assembly as assembly;
 pub use hooke_mesh as mesh;

@@ -40,6 +40,8 @@ enum Command {
     Scenes,
     /// Run a scene and write frames, summary.json and preview.png.
     Run(RunArgs),
+    /// Speed against error: time solvers on one backward Euler step and measure their errors.
+    Bench(hooke::bench::BenchArgs),
 }
 
 #[derive(clap::Args, Default)]
@@ -118,6 +120,8 @@ enum CliError {
     },
     #[error("invalid --{name}: {reason}")]
     Argument { name: &'static str, reason: String },
+    #[error(transparent)]
+    Bench(#[from] hooke::bench::BenchError),
 }
 
 fn main() -> ExitCode {
@@ -130,6 +134,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::Run(args)) => run(&args),
+        Some(Command::Bench(args)) => hooke::bench::run_command(&args).map_err(CliError::from),
         None => run(&RunArgs {
             scene: DEFAULT_SCENE.into(),
             out: "out".into(),

@@ -1,0 +1,217 @@
+//! The `hooke bench` command: its arguments and what it does with them.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use crate::bench::{
+    format_hard_cases, format_sweep_table, format_table, hard_cases, load_setup, plot_pareto,
+    plot_sweep, run_spec, sweep, write_csv, write_json, BenchError, BenchProblem, ErrorMeter,
+    HardCaseOptions, PrepareOptions, Record, SolverSpec, StartState, SweepOptions, TimingOptions,
+    HARD_CASES, HARD_INTEGRATORS,
+};
+
+/// Arguments of `hooke bench`.
+#[derive(clap::Args, Clone, Debug)]
+#[command(after_help = BENCH_HELP)]
+pub struct BenchArgs {
+    /// A built-in scene (e.g. cloth-40, beam-4) or a scene file; not used with --sweep or
+    /// --hard-cases.
+    #[arg(default_value = "cloth-40")]
+    pub scene: String,
+    /// Solver and settings, repeatable: pd:1,2,5 (iterations), pd-tol:1e-3, newton:1,2,3
+    /// (iterations), newton-tol:1e-4, cg:10 and cg-tol:1e-2 (linearised step, CG), jacobi:10 and
+    /// jacobi-tol:1e-2 (linearised step, block Jacobi), linearized-cg, linearized-jacobi. A name
+    /// alone takes its default settings. Default: pd, newton, newton-tol, cg-tol, jacobi,
+    /// linearized-cg (with --sweep: pd:10, newton-tol:1e-8, linearized-cg).
+    #[arg(long = "solver", value_name = "SPEC")]
+    pub solvers: Vec<String>,
+    /// Write the records as a JSON array.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write the records as CSV.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Plot error against time (or, with --sweep, time against vertices) on log axes as a PNG.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// Time one step per solver on cloth-N for each N, e.g. N=10,20,40,80,160,320.
+    #[arg(long, value_name = "N=…", conflicts_with = "hard_cases")]
+    pub sweep: Option<String>,
+    /// With --sweep: also compute the reference for each size and report the errors.
+    #[arg(long, requires = "sweep")]
+    pub errors: bool,
+    /// With --sweep: time the step from the speed-vs-error state (10 exact steps first, cached)
+    /// instead of the first step from rest.
+    #[arg(long, requires = "sweep")]
+    pub from_state: bool,
+    /// Run every integrator on every hard case of SCENES.md and print a matrix.
+    #[arg(long)]
+    pub hard_cases: bool,
+    /// With --hard-cases: frames per run.
+    #[arg(long, default_value_t = 30, requires = "hard_cases")]
+    pub frames: usize,
+    /// Timed repeats of each step after one warm-up run; the median is reported. Steps longer than
+    /// 2 s are timed once.
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Directory for the cached speed-vs-error states and references.
+    #[arg(long, value_name = "DIR", default_value = "out/bench-cache")]
+    pub cache_dir: PathBuf,
+    /// Neither read nor write the cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// No progress lines on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+const BENCH_HELP: &str = "\
+Measures, for one backward Euler step from SCENES.md's speed-vs-error state (10 exact steps from
+rest) and the initial guess x0 = y, each solver's wall time (median of repeats; PD's one-off
+factorisation reported apart as factor ms) and its errors against x* (Newton to a relative
+gradient of 1e-10): objective error (Phi(x) - Phi*)/(Phi(y) - Phi*), position error
+|x - x*|/|x* - x_n|, and the force residual |M(x - y) - h^2 f(x)| relative to its value at y.
+
+Examples:
+  hooke bench cloth-40 --json out/cloth-40.json --plot out/cloth-40.png
+  hooke bench beam-4 --solver pd:1,10,100 --solver newton:1,2,3
+  hooke bench --sweep N=10,20,40,80,160 --solver pd:10 --solver newton-tol:1e-8
+  hooke bench --hard-cases";
+
+/// Run `hooke bench` with `args`: print the table on stdout and write the files asked for.
+///
+/// # Errors
+/// A [`BenchError`] for a bad spec or scene, a failed setup, or a file that cannot be written.
+pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
+    let begin = Instant::now();
+    let quiet = args.quiet;
+    let mut progress = |line: &str| {
+        if !quiet {
+            eprintln!("[{:7.1} s] {line}", begin.elapsed().as_secs_f64());
+        }
+    };
+    let timing = TimingOptions {
+        repeats: args.repeats,
+        ..TimingOptions::default()
+    };
+    let cache_dir = (!args.no_cache).then(|| args.cache_dir.clone());
+    let specs = if args.solvers.is_empty() {
+        None
+    } else {
+        Some(
+            args.solvers
+                .iter()
+                .map(|s| s.parse::<SolverSpec>())
+                .collect::<Result<Vec<_>, _>>()?,
+        )
+    };
+
+    if args.hard_cases {
+        let results = hard_cases(
+            HARD_CASES,
+            HARD_INTEGRATORS,
+            HardCaseOptions {
+                frames: args.frames,
+                ..HardCaseOptions::default()
+            },
+            &mut progress,
+        )?;
+        print!("{}", format_hard_cases(&results));
+        return Ok(());
+    }
+
+    if let Some(text) = &args.sweep {
+        let sizes = SweepOptions::parse_sizes(text)?;
+        let specs = match specs {
+            Some(s) => s,
+            None => ["pd:10", "newton-tol:1e-8", "linearized-cg"]
+                .iter()
+                .map(|s| s.parse())
+                .collect::<Result<Vec<_>, _>>()?,
+        };
+        let options = SweepOptions {
+            sizes,
+            errors: args.errors,
+            start: if args.from_state {
+                StartState::SpeedVsError
+            } else {
+                StartState::Rest
+            },
+            timing,
+            cache_dir,
+        };
+        let rows = sweep(&specs, &options, &mut progress)?;
+        println!(
+            "one step per solver on cloth-N ({}); peak MB is the whole process's peak resident memory so far (VmHWM)",
+            if args.from_state {
+                "from the speed-vs-error state"
+            } else {
+                "the first step, from rest"
+            }
+        );
+        print!("{}", format_sweep_table(&rows));
+        let records: Vec<Record> = rows.iter().map(|r| r.outcome.record.clone()).collect();
+        write_outputs(args, &records)?;
+        if let Some(path) = &args.plot {
+            plot_sweep(path, &rows, "time per step against size, cloth-N")?;
+        }
+        return Ok(());
+    }
+
+    let specs = specs.unwrap_or_else(SolverSpec::defaults);
+    let setup = load_setup(&args.scene)?;
+    let problem = BenchProblem::prepare(
+        &setup,
+        &PrepareOptions {
+            start: StartState::SpeedVsError,
+            reference: true,
+            cache_dir,
+        },
+        &mut progress,
+    )?;
+    let mut meter = ErrorMeter::new(&problem);
+    let mut outcomes = Vec::new();
+    for spec in &specs {
+        outcomes.extend(run_spec(&problem, &mut meter, spec, timing, &mut progress)?);
+    }
+    let mesh = problem.scene.mesh();
+    let reference = problem
+        .reference
+        .as_ref()
+        .map(|(_, info)| {
+            format!(
+                "reference x*: Newton, {} iterations, relative gradient {:.1e}, {:.3} s",
+                info.iterations, info.gradient, info.wall_time_s
+            )
+        })
+        .unwrap_or_default();
+    println!(
+        "{}: {} vertices, {} springs, h = {:.4} s; step {} from the speed-vs-error state; {reference}",
+        problem.name,
+        mesh.vertex_count(),
+        mesh.springs().len(),
+        problem.scene.time_step(),
+        crate::bench::STATE_STEPS + 1,
+    );
+    println!(
+        "step ms: median wall time of the step; factor ms: PD's one-off factorisation (not in step \
+         ms) or Newton's factorisations (in step ms); residual: |M(x-y) - h^2 f(x)| / |h^2 f(y)|"
+    );
+    print!("{}", format_table(&outcomes));
+    let records: Vec<Record> = outcomes.iter().map(|o| o.record.clone()).collect();
+    write_outputs(args, &records)?;
+    if let Some(path) = &args.plot {
+        plot_pareto(path, &records, &problem.name)?;
+    }
+    Ok(())
+}
+
+fn write_outputs(args: &BenchArgs, records: &[Record]) -> Result<(), BenchError> {
+    if let Some(path) = &args.json {
+        write_json(path, records)?;
+    }
+    if let Some(path) = &args.csv {
+        write_csv(path, records)?;
+    }
+    Ok(())
+}

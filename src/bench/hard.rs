@@ -1,0 +1,344 @@
+//! `--hard-cases`: every integrator on every hard case of SCENES.md (numerical stability).
+//!
+//! The cases are built on cloth-N (N = 40 by default) as SCENES.md states them, with the same
+//! seeds and vertices as the project's `tests/hard_cases.rs`:
+//! - `stiff h=1/30`, `stiff h=1/5`: cloth-N-stiff (k = 1e5 N/m) at both steps;
+//! - `stretched x3`: the initial state scaled by 3 in x and z; `crushed to 1%`: scaled by 0.01;
+//! - `k 1e1..1e7`: stiffness log-uniform over 6 orders of magnitude (SplitMix64, seed 2024);
+//! - `mass ratio 1e4`: masses log-uniform over 4 orders of magnitude (seed 7), with the extremes
+//!   exactly 1e4 apart;
+//! - `zero-length spring`: vertex (N/2, N/2) moved onto (N/2, N/2 + 1);
+//! - `free-floating`: no pins, spinning at 2 rad/s about the vertical axis through the centre.
+//!
+//! Each run takes `frames` frames and ends `ok` (with the energy drift and the largest stretch),
+//! `refused` (the simulation would not start: an explicit method above its stability bound, or
+//! needing more than `max_substeps` substeps), or `failed` (an error during the run: a linear solve
+//! that failed, the energy watchdog, divergence).
+
+use std::time::Instant;
+
+use nalgebra::Vector3;
+
+use crate::bench::BenchError;
+use crate::sim::{
+    scenes, stability_bound, Integrator, LinearSolver, LinearizedParams, Pins, Scene, Settings,
+    SimError, Simulation, State,
+};
+use crate::solvers::NewtonParams;
+
+/// The hard cases, in the order of SCENES.md.
+pub const HARD_CASES: &[&str] = &[
+    "stiff h=1/30",
+    "stiff h=1/5",
+    "stretched x3",
+    "crushed to 1%",
+    "k 1e1..1e7",
+    "mass ratio 1e4",
+    "zero-length spring",
+    "free-floating",
+];
+
+/// The integrators run on each case.
+pub const HARD_INTEGRATORS: &[&str] = &[
+    "explicit-euler",
+    "symplectic-euler",
+    "linearized-cg",
+    "linearized-jacobi",
+    "newton",
+    "pd",
+];
+
+/// How [`hard_cases`] runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HardCaseOptions {
+    /// Cloth size N. Default 40 (SCENES.md).
+    pub n: usize,
+    /// Frames per run. Default 30 (1 s at h = 1/30).
+    pub frames: usize,
+    /// Explicit methods take the substeps their stability bound asks for, up to this many per
+    /// frame; above it they are refused. Default 1000.
+    pub max_substeps: usize,
+}
+
+impl Default for HardCaseOptions {
+    fn default() -> Self {
+        HardCaseOptions {
+            n: 40,
+            frames: 30,
+            max_substeps: 1000,
+        }
+    }
+}
+
+/// How one run ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HardOutcome {
+    /// Every frame finished.
+    Ok {
+        /// (E_end − E₀) / (|E₀| + E_g): the change of total energy over the run relative to the
+        /// scene's energy scale (E_g = M |g| L: total mass, gravity, diagonal of the initial
+        /// bounding box). Backward Euler dissipates (negative); a positive drift is energy gained.
+        energy_drift: f64,
+        /// Largest spring stretch |r|/l over all frames (1 at rest).
+        max_stretch: f64,
+    },
+    /// The simulation refused to start.
+    Refused {
+        /// The error's message.
+        error: String,
+    },
+    /// An error during the run.
+    Failed {
+        /// The frame (1-based) that failed.
+        frame: usize,
+        /// The error's message.
+        error: String,
+        /// Largest stretch over the frames before it.
+        max_stretch: f64,
+    },
+}
+
+/// One cell of the matrix.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HardResult {
+    /// The case ([`HARD_CASES`]).
+    pub case: String,
+    /// The integrator ([`HARD_INTEGRATORS`]).
+    pub integrator: String,
+    /// How it ended.
+    pub outcome: HardOutcome,
+    /// Wall time of the run, s.
+    pub wall_time_s: f64,
+}
+
+/// Run every integrator of `integrators` on every case of `cases`.
+///
+/// # Errors
+/// [`BenchError::Scene`] for an unknown case or integrator name, or a size below 4.
+pub fn hard_cases(
+    cases: &[&str],
+    integrators: &[&str],
+    options: HardCaseOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<HardResult>, BenchError> {
+    if options.n < 4 {
+        return Err(BenchError::Scene(format!(
+            "hard cases need cloth-N with N ≥ 4, got {}",
+            options.n
+        )));
+    }
+    let mut results = Vec::new();
+    for &case_name in cases {
+        for &integrator in integrators {
+            let (scene, state) = case(case_name, options.n)?;
+            let settings = settings(integrator, &scene, options.max_substeps)?;
+            let start = Instant::now();
+            let outcome = run(scene, state, settings, options.frames);
+            let wall_time_s = start.elapsed().as_secs_f64();
+            progress(&format!(
+                "{case_name}, {integrator}: {} in {wall_time_s:.1} s",
+                match &outcome {
+                    HardOutcome::Ok { .. } => "ok",
+                    HardOutcome::Refused { .. } => "refused",
+                    HardOutcome::Failed { .. } => "failed",
+                }
+            ));
+            results.push(HardResult {
+                case: case_name.into(),
+                integrator: integrator.into(),
+                outcome,
+                wall_time_s,
+            });
+        }
+    }
+    Ok(results)
+}
+
+fn run(scene: Scene<3>, state: State<3>, settings: Settings, frames: usize) -> HardOutcome {
+    let scale = energy_scale(&scene, &state.positions);
+    let mut sim = match Simulation::new(scene, state, settings) {
+        Ok(sim) => sim,
+        Err(e) => {
+            return HardOutcome::Refused {
+                error: e.to_string(),
+            }
+        }
+    };
+    let e0 = sim.energy().total;
+    let mut max_stretch = sim.scene().max_stretch(sim.state());
+    for frame in 1..=frames {
+        if let Err(e) = sim.step() {
+            return match e {
+                SimError::UnstableStep { .. } => HardOutcome::Refused {
+                    error: e.to_string(),
+                },
+                e => HardOutcome::Failed {
+                    frame,
+                    error: e.to_string(),
+                    max_stretch,
+                },
+            };
+        }
+        max_stretch = max_stretch.max(sim.scene().max_stretch(sim.state()));
+    }
+    HardOutcome::Ok {
+        energy_drift: (sim.energy().total - e0) / (e0.abs() + scale),
+        max_stretch,
+    }
+}
+
+/// E_g = M |g| L (J): total mass, gravity, diagonal of the bounding box of `positions`.
+fn energy_scale(scene: &Scene<3>, positions: &[Vector3<f64>]) -> f64 {
+    let (mut min, mut max) = (positions[0], positions[0]);
+    for p in positions {
+        min = min.inf(p);
+        max = max.sup(p);
+    }
+    let g = scene.forces().gravity().map_or(0.0, |g| g.norm());
+    scene.mesh().total_mass() * g * (max - min).norm()
+}
+
+fn settings(name: &str, scene: &Scene<3>, max_substeps: usize) -> Result<Settings, BenchError> {
+    let explicit = |integrator| {
+        let bound = stability_bound(scene);
+        let (safe, _) = bound.for_integrator(integrator, scene.time_step());
+        let needed = (scene.time_step() / safe).ceil();
+        Settings {
+            integrator,
+            substeps: Some((needed as usize).clamp(1, max_substeps)),
+            ..Settings::default()
+        }
+    };
+    let linearized = |solver| Settings {
+        integrator: Integrator::Linearized,
+        linearized: LinearizedParams {
+            solver,
+            ..LinearizedParams::default()
+        },
+        ..Settings::default()
+    };
+    Ok(match name {
+        "explicit-euler" => explicit(Integrator::ExplicitEuler),
+        "symplectic-euler" => explicit(Integrator::SymplecticEuler),
+        "linearized-cg" => linearized(LinearSolver::ConjugateGradient),
+        "linearized-jacobi" => linearized(LinearSolver::Jacobi),
+        "newton" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                max_iterations: 200,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
+        "pd" => Settings {
+            integrator: Integrator::ProjectiveDynamics,
+            ..Settings::default()
+        },
+        other => {
+            return Err(BenchError::Scene(format!(
+                "unknown integrator {other:?} for the hard cases; expected one of: {}",
+                HARD_INTEGRATORS.join(", ")
+            )))
+        }
+    })
+}
+
+/// SplitMix64: a small seeded generator, so the random cases are the same on every machine.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The hard case `name` on cloth-`n`.
+fn case(name: &str, n: usize) -> Result<(Scene<3>, State<3>), BenchError> {
+    let scene_error = |e: SimError| BenchError::Scene(format!("hard case {name:?}: {e}"));
+    let cloth = |stiff| -> Result<(Scene<3>, State<3>), BenchError> {
+        let setup = scenes::cloth(n, stiff).map_err(scene_error)?;
+        Ok((setup.scene, setup.initial))
+    };
+    let rebuild = |scene: &Scene<3>, mesh| -> Result<Scene<3>, BenchError> {
+        Scene::new(mesh, scene.time_step())
+            .and_then(|s| s.with_pins(Pins::Vertices(scene.pinned().to_vec())))
+            .and_then(|s| s.with_forces(scene.forces().as_slice().to_vec()))
+            .map_err(scene_error)
+    };
+    Ok(match name {
+        "stiff h=1/30" => cloth(true)?,
+        "stiff h=1/5" => {
+            let (scene, state) = cloth(true)?;
+            (scene.with_time_step(0.2).map_err(scene_error)?, state)
+        }
+        "stretched x3" => {
+            let (scene, mut state) = cloth(false)?;
+            for p in &mut state.positions {
+                p.x *= 3.0;
+                p.z *= 3.0;
+            }
+            (scene, state)
+        }
+        "crushed to 1%" => {
+            let (scene, mut state) = cloth(false)?;
+            for p in &mut state.positions {
+                *p *= 0.01;
+            }
+            (scene, state)
+        }
+        "k 1e1..1e7" => {
+            let (scene, state) = cloth(false)?;
+            let mut rng = Rng(2024);
+            let mesh = scene
+                .mesh()
+                .clone()
+                .map_stiffness(|_, _| 10f64.powf(1.0 + 6.0 * rng.next()))
+                .map_err(|e| scene_error(e.into()))?;
+            (rebuild(&scene, mesh)?, state)
+        }
+        "mass ratio 1e4" => {
+            let (scene, state) = cloth(false)?;
+            let mut rng = Rng(7);
+            let count = scene.mesh().vertex_count();
+            let mesh = scene
+                .mesh()
+                .clone()
+                .map_masses(|v, m| match v {
+                    _ if v == count / 2 => m * 100.0,
+                    _ if v == count / 2 + 1 => m / 100.0,
+                    _ => m * 10f64.powf(-2.0 + 4.0 * rng.next()),
+                })
+                .map_err(|e| scene_error(e.into()))?;
+            (rebuild(&scene, mesh)?, state)
+        }
+        "zero-length spring" => {
+            let (scene, mut state) = cloth(false)?;
+            let half = n / 2;
+            let (a, b) = (half * n + half, half * n + half + 1);
+            state.positions[a] = state.positions[b];
+            (scene, state)
+        }
+        "free-floating" => {
+            let (scene, mut state) = cloth(false)?;
+            let scene = Scene::new(scene.mesh().clone(), scene.time_step())
+                .and_then(|s| s.with_forces(scene.forces().as_slice().to_vec()))
+                .map_err(scene_error)?;
+            let centre = Vector3::new(0.5, 0.0, 0.5);
+            for (p, v) in state.positions.iter().zip(&mut state.velocities) {
+                *v = Vector3::new(0.0, 2.0, 0.0).cross(&(p - centre));
+            }
+            (scene, state)
+        }
+        other => {
+            return Err(BenchError::Scene(format!(
+                "unknown hard case {other:?}; expected one of: {}",
+                HARD_CASES.join(", ")
+            )))
+        }
+    })
+}

@@ -1,0 +1,233 @@
+//! The report as text: the table on stdout, JSON and CSV files (written atomically).
+
+use std::io::Write;
+use std::path::Path;
+
+use crate::bench::{BenchError, HardOutcome, HardResult, Outcome, Record, SweepRow};
+
+/// The column names of the JSON records and the CSV header, in order.
+pub const COLUMNS: [&str; 9] = [
+    "scene",
+    "solver",
+    "setting",
+    "iterations",
+    "wall_time_s",
+    "factor_time_s",
+    "objective_error",
+    "position_error",
+    "residual",
+];
+
+fn output_error(path: &Path, e: impl std::fmt::Display) -> BenchError {
+    BenchError::Output {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
+/// Create the directory `path` will be written in, if missing.
+pub(crate) fn create_parent(path: &Path) -> Result<(), BenchError> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).map_err(|e| output_error(path, e))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// [`hooke_mesh::io::write_atomically`] into a created directory, with its error as an output
+/// error.
+fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), BenchError> {
+    create_parent(path)?;
+    hooke_mesh::io::write_atomically(path, write).map_err(|e| match e {
+        hooke_mesh::MeshError::Io { source, .. } => output_error(path, source),
+        e => output_error(path, e),
+    })
+}
+
+/// Write `records` as a JSON array (keys as [`Record`]'s fields, `null` where not computed; a
+/// non-finite number is written as `null` too).
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn write_json(path: &Path, records: &[Record]) -> Result<(), BenchError> {
+    let text = serde_json::to_string_pretty(records).map_err(|e| output_error(path, e))?;
+    write_file(path, |out| writeln!(out, "{text}"))
+}
+
+/// Write `records` as CSV: a header with the JSON keys, one line per record, empty fields where
+/// not computed, numbers in Rust's shortest round-trip form.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn write_csv(path: &Path, records: &[Record]) -> Result<(), BenchError> {
+    write_file(path, |out| {
+        writeln!(out, "{}", COLUMNS.join(","))?;
+        for r in records {
+            let number = |v: Option<f64>| match v {
+                Some(v) if v.is_finite() => format!("{v:?}"),
+                _ => String::new(),
+            };
+            let fields = [
+                quote(&r.scene),
+                quote(&r.solver),
+                quote(&r.setting),
+                r.iterations.map(|k| k.to_string()).unwrap_or_default(),
+                number(r.wall_time_s),
+                number(r.factor_time_s),
+                number(r.objective_error),
+                number(r.position_error),
+                number(r.residual),
+            ];
+            writeln!(out, "{}", fields.join(","))?;
+        }
+        Ok(())
+    })
+}
+
+/// A CSV field, quoted if it holds a comma, a quote or a line break.
+fn quote(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn sci(v: Option<f64>) -> String {
+    match v {
+        Some(v) => format!("{v:.2e}"),
+        None => "-".into(),
+    }
+}
+
+fn ms(v: Option<f64>) -> String {
+    match v {
+        Some(v) => format!("{:.3}", v * 1e3),
+        None => "-".into(),
+    }
+}
+
+/// The report table: one line per outcome, with a note column for failures and remarks.
+pub fn format_table(outcomes: &[Outcome]) -> String {
+    let mut s = format!(
+        "{:<18} {:>8} {:>6} {:>11} {:>11} {:>10} {:>10} {:>10}  note\n",
+        "solver", "setting", "iters", "step ms", "factor ms", "obj. err", "pos. err", "residual"
+    );
+    for o in outcomes {
+        let r = &o.record;
+        s += &format!(
+            "{:<18} {:>8} {:>6} {:>11} {:>11} {:>10} {:>10} {:>10}  {}\n",
+            r.solver,
+            r.setting,
+            r.iterations.map_or("-".into(), |k| k.to_string()),
+            ms(r.wall_time_s),
+            ms(r.factor_time_s),
+            sci(r.objective_error),
+            sci(r.position_error),
+            sci(r.residual),
+            o.note.as_deref().unwrap_or("")
+        );
+    }
+    s
+}
+
+/// The sweep table: one line per size and solver setting, with the process's peak memory after
+/// that size.
+pub fn format_sweep_table(rows: &[SweepRow]) -> String {
+    let mut s = format!(
+        "{:<12} {:>9} {:>18} {:>8} {:>6} {:>11} {:>11} {:>10} {:>10} {:>10} {:>9}  note\n",
+        "scene",
+        "vertices",
+        "solver",
+        "setting",
+        "iters",
+        "step ms",
+        "factor ms",
+        "obj. err",
+        "pos. err",
+        "residual",
+        "peak MB"
+    );
+    for row in rows {
+        let r = &row.outcome.record;
+        s += &format!(
+            "{:<12} {:>9} {:>18} {:>8} {:>6} {:>11} {:>11} {:>10} {:>10} {:>10} {:>9}  {}\n",
+            r.scene,
+            row.vertices,
+            r.solver,
+            r.setting,
+            r.iterations.map_or("-".into(), |k| k.to_string()),
+            ms(r.wall_time_s),
+            ms(r.factor_time_s),
+            sci(r.objective_error),
+            sci(r.position_error),
+            sci(r.residual),
+            row.peak_memory_bytes
+                .map_or("-".into(), |b| format!("{:.0}", b as f64 / 1e6)),
+            row.outcome.note.as_deref().unwrap_or("")
+        );
+    }
+    s
+}
+
+/// The hard-case matrix (cases down, integrators across), then one line per run that did not
+/// finish, with its error.
+pub fn format_hard_cases(results: &[HardResult]) -> String {
+    let mut integrators: Vec<&str> = Vec::new();
+    let mut cases: Vec<&str> = Vec::new();
+    for r in results {
+        if !integrators.contains(&r.integrator.as_str()) {
+            integrators.push(&r.integrator);
+        }
+        if !cases.contains(&r.case.as_str()) {
+            cases.push(&r.case);
+        }
+    }
+    const W: usize = 30;
+    let mut s = format!("{:<20}", "case");
+    for i in &integrators {
+        s += &format!(" | {i:<W$}");
+    }
+    s += "\n";
+    let mut details = String::new();
+    for c in &cases {
+        s += &format!("{c:<20}");
+        for i in &integrators {
+            let cell = match results.iter().find(|r| r.case == *c && r.integrator == *i) {
+                Some(r) => {
+                    let cell = match &r.outcome {
+                        HardOutcome::Ok {
+                            energy_drift,
+                            max_stretch,
+                        } => format!("ok  dE {energy_drift:+.1e} s {max_stretch:.2}"),
+                        HardOutcome::Refused { error } => {
+                            details += &format!("{c}, {i}: refused: {error}\n");
+                            "refused".to_string()
+                        }
+                        HardOutcome::Failed {
+                            frame,
+                            error,
+                            max_stretch,
+                        } => {
+                            details += &format!("{c}, {i}: failed at frame {frame}: {error}\n");
+                            format!("FAILED @{frame} s {max_stretch:.2}")
+                        }
+                    };
+                    format!("{cell} {:.1}s", r.wall_time_s)
+                }
+                None => "-".into(),
+            };
+            s += &format!(" | {cell:<W$}");
+        }
+        s += "\n";
+    }
+    if !details.is_empty() {
+        s += "\n";
+        s += &details;
+    }
+    s
+}

@@ -1,0 +1,241 @@
+//! PNG plots on log axes, drawn with plotters and the font shipped in `assets/fonts` (no system
+//! font needed), written to a temporary file beside the target and renamed onto it.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use plotters::coord::combinators::IntoLogRange;
+use plotters::prelude::*;
+use plotters::style::register_font;
+
+use crate::bench::{BenchError, Record, SweepRow};
+
+/// The family name the embedded font is registered under.
+const FONT: &str = "sans-serif";
+/// DejaVu Sans (see `assets/fonts/DejaVuSans-LICENSE.txt`).
+static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+fn font_ready() -> bool {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    *REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok())
+}
+
+fn plot_error(path: &Path, e: impl std::fmt::Display) -> BenchError {
+    BenchError::Output {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
+/// A named series of (x, y) points, drawn as a line through the points in their order (a solver's
+/// settings from loose to strict, or sizes from small to large).
+struct Series {
+    name: String,
+    points: Vec<(f64, f64)>,
+}
+
+/// Group `(name, x, y)` triples by name (first-seen order), keeping positive finite values only.
+fn group(items: impl IntoIterator<Item = (String, Option<f64>, Option<f64>)>) -> Vec<Series> {
+    let mut series: Vec<Series> = Vec::new();
+    for (name, x, y) in items {
+        let (Some(x), Some(y)) = (x, y) else { continue };
+        if !(x > 0.0 && y > 0.0 && x.is_finite() && y.is_finite()) {
+            continue;
+        }
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push((x, y)),
+            None => series.push(Series {
+                name,
+                points: vec![(x, y)],
+            }),
+        }
+    }
+    series
+}
+
+/// A log range around the values, widened to whole-ish decades.
+fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for v in values {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !(lo.is_finite() && hi > 0.0) {
+        return 1e-3..1.0;
+    }
+    let lo = 10f64.powf(lo.log10().floor());
+    let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
+    if hi > lo {
+        lo..hi
+    } else {
+        lo..lo * 10.0
+    }
+}
+
+/// Draw one log-log chart of `series` into `area`.
+fn chart(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    caption: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> Result<(), String> {
+    let text = font_ready();
+    let x = log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let y = log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .margin(12)
+        .x_label_area_size(if text { 45 } else { 5 })
+        .y_label_area_size(if text { 70 } else { 5 });
+    if text {
+        builder.caption(caption, (FONT, 20));
+    }
+    let mut c = builder
+        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .map_err(|e| e.to_string())?;
+    let mut mesh = c.configure_mesh();
+    if text {
+        mesh.x_desc(x_label)
+            .y_desc(y_label)
+            .label_style((FONT, 13))
+            .axis_desc_style((FONT, 15))
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"));
+    } else {
+        mesh.disable_x_mesh().disable_y_mesh();
+    }
+    mesh.draw().map_err(|e| e.to_string())?;
+    for (k, s) in series.iter().enumerate() {
+        let color = PALETTE[k % PALETTE.len()];
+        let line = c
+            .draw_series(LineSeries::new(
+                s.points.iter().copied(),
+                color.stroke_width(2),
+            ))
+            .map_err(|e| e.to_string())?;
+        if text {
+            line.label(s.name.clone()).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        }
+        c.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+            .map_err(|e| e.to_string())?;
+    }
+    if text && !series.is_empty() {
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((FONT, 13))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// Render with `draw` into a PNG at `path`, through a temporary file beside it.
+fn write_png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<(), String>,
+) -> Result<(), BenchError> {
+    crate::bench::output::create_parent(path)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    // The `.png` suffix makes plotters choose the PNG encoder.
+    let tmp = tempfile::Builder::new()
+        .prefix(".bench-plot-")
+        .suffix(".png")
+        .tempfile_in(dir)
+        .map_err(|e| plot_error(path, e))?
+        .into_temp_path();
+    {
+        let area = BitMapBackend::new(&tmp, size).into_drawing_area();
+        area.fill(&WHITE).map_err(|e| plot_error(path, e))?;
+        draw(&area).map_err(|e| plot_error(path, e))?;
+        area.present().map_err(|e| plot_error(path, e))?;
+    }
+    tmp.persist(path).map_err(|e| plot_error(path, e.error))?;
+    Ok(())
+}
+
+/// Error against wall time of the step on log axes, one line per solver through its settings in
+/// the order given (its Pareto curve): objective error on the left, position error on the right. Records
+/// without a time or with a non-positive error are left out.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn plot_pareto(path: &Path, records: &[Record], title: &str) -> Result<(), BenchError> {
+    let by = |f: fn(&Record) -> Option<f64>| {
+        group(
+            records
+                .iter()
+                .map(|r| (r.solver.clone(), r.wall_time_s, f(r))),
+        )
+    };
+    let objective = by(|r| r.objective_error);
+    let position = by(|r| r.position_error);
+    write_png(path, (1400, 600), |area| {
+        let (left, right) = area.split_horizontally(700);
+        chart(
+            &left,
+            &format!("{title}: objective error"),
+            "wall time of the step (s)",
+            "(Φ(x) − Φ*) / (Φ(y) − Φ*)",
+            &objective,
+        )?;
+        chart(
+            &right,
+            &format!("{title}: position error"),
+            "wall time of the step (s)",
+            "|x − x*| / |x* − x_n|",
+            &position,
+        )
+    })
+}
+
+/// Wall time of one step against the vertex count on log axes, one line per solver setting.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn plot_sweep(path: &Path, rows: &[SweepRow], title: &str) -> Result<(), BenchError> {
+    let series = group(rows.iter().map(|row| {
+        let r = &row.outcome.record;
+        (
+            format!("{}:{}", r.solver, r.setting),
+            Some(row.vertices as f64),
+            r.wall_time_s,
+        )
+    }));
+    let peak = rows.iter().filter_map(|r| r.peak_memory_bytes).max();
+    let caption = match peak {
+        Some(b) => format!(
+            "{title} (peak memory {:.0} MB, whole process)",
+            b as f64 / 1e6
+        ),
+        None => title.to_string(),
+    };
+    write_png(path, (900, 600), |area| {
+        chart(
+            area,
+            &caption,
+            "vertices",
+            "wall time of one step (s)",
+            &series,
+        )
+    })
+}

@@ -1,0 +1,373 @@
+//! Timing one step per solver setting and measuring its result.
+
+use std::time::{Duration, Instant};
+
+use hooke_solvers::{
+    BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    StopReason,
+};
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::bench::{BenchError, BenchProblem, ErrorMeter, Setting, SolverKind, SolverSpec};
+use crate::sim::{Integrator, LinearSolver, LinearizedParams, Settings, Simulation};
+
+/// Iteration limit of the tolerance-driven PD, CG and Jacobi runs.
+const TOLERANCE_RUN_LIMIT: usize = 10_000;
+/// Newton's iteration limit for `newton-tol`.
+const NEWTON_TOLERANCE_LIMIT: usize = 500;
+
+/// One line of the report: what `--json` and `--csv` write, with exactly these fields (`null` /
+/// empty where a value was not computed).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Record {
+    /// The scene's name, e.g. `cloth-40`.
+    pub scene: String,
+    /// The solver family ([`SolverKind::name`]).
+    pub solver: String,
+    /// Its setting: an iteration count, a tolerance or `default`.
+    pub setting: String,
+    /// Iterations the solver took: PD and Newton iterations, or the linear solver's iterations for
+    /// the linearised integrator.
+    pub iterations: Option<usize>,
+    /// Wall time of the step, s: the median of the timed repeats (see [`TimingOptions`]). Excludes
+    /// work done once per scene and reused by every step (PD's factorisation, Newton's symbolic
+    /// analysis); for the linearised integrator it is its whole step (Hessian assembly and solve).
+    pub wall_time_s: Option<f64>,
+    /// Factorisation time, s. PD: its one numeric factorisation of K(M + h²L)Kᵀ, done once per scene
+    /// and amortised over all steps: *not* part of `wall_time_s`. Newton: the time in numeric
+    /// factorisations within the step (median over repeats): part of `wall_time_s`. Null for the
+    /// linearised integrator (it factors nothing).
+    pub factor_time_s: Option<f64>,
+    /// (Φ(x) − Φ*) / (Φ(y) − Φ*) (SPEC §8).
+    pub objective_error: Option<f64>,
+    /// |x − x*| / |x* − x_n| over the free DOFs (SPEC §8).
+    pub position_error: Option<f64>,
+    /// ‖M(x − y) − h² f(x)‖ / ‖M(y − y) − h² f(y)‖ = ‖∇Φ(x)‖ / ‖∇Φ(y)‖, the force residual relative
+    /// to its value at the initial guess y.
+    pub residual: Option<f64>,
+}
+
+/// A record with what the JSON does not hold: a note (why a run failed, a stop short of its
+/// tolerance) and the positions x it produced (empty if it failed).
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The record.
+    pub record: Record,
+    /// Failure or remark, if any.
+    pub note: Option<String>,
+    /// x after the step, per vertex (full numbering); empty if the run failed.
+    pub positions: Vec<Vector3<f64>>,
+}
+
+/// How steps are timed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimingOptions {
+    /// Timed repeats after one untimed warm-up run (which also provides x): the reported time is
+    /// their median. Default 5.
+    pub repeats: usize,
+    /// A warm-up run longer than this (s) is timed once, by itself: caches hardly matter at that
+    /// length and repeats would take minutes. Default 2 s.
+    pub single_run_above: f64,
+}
+
+impl Default for TimingOptions {
+    fn default() -> Self {
+        TimingOptions {
+            repeats: 5,
+            single_run_above: 2.0,
+        }
+    }
+}
+
+/// What one run returns: the positions, iterations, wall time, factorisation time (if any), a note.
+struct RunResult {
+    positions: Vec<Vector3<f64>>,
+    iterations: usize,
+    wall: Duration,
+    factor: Option<Duration>,
+    note: Option<String>,
+}
+
+/// Run every setting of `spec` on `problem`, time it and measure it with `meter` (which must be
+/// built for the same problem). A run that fails gives a record with nulls and the error in its
+/// note; only an error of the setup itself is returned as `Err`.
+///
+/// # Errors
+/// [`BenchError::Solver`] if the solver cannot be set up for the scene (e.g. PD's matrix does not
+/// factor).
+pub fn run_spec(
+    problem: &BenchProblem,
+    meter: &mut ErrorMeter,
+    spec: &SolverSpec,
+    timing: TimingOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<Outcome>, BenchError> {
+    let mut runner = Runner::new(problem, spec.kind)?;
+    let mut outcomes = Vec::with_capacity(spec.settings.len());
+    for &setting in &spec.settings {
+        let begin = Instant::now();
+        let outcome = match timed(timing, || runner.run(problem, setting)) {
+            Ok(r) => {
+                let m = meter.measure(&r.positions);
+                Outcome {
+                    record: Record {
+                        scene: problem.name.clone(),
+                        solver: spec.kind.name().into(),
+                        setting: setting.to_string(),
+                        iterations: Some(r.iterations),
+                        wall_time_s: Some(r.wall.as_secs_f64()),
+                        factor_time_s: r.factor.map(|d| d.as_secs_f64()),
+                        objective_error: m.objective_error,
+                        position_error: m.position_error,
+                        residual: Some(m.residual),
+                    },
+                    note: r.note,
+                    positions: r.positions,
+                }
+            }
+            Err(message) => Outcome {
+                record: Record {
+                    scene: problem.name.clone(),
+                    solver: spec.kind.name().into(),
+                    setting: setting.to_string(),
+                    iterations: None,
+                    wall_time_s: None,
+                    factor_time_s: None,
+                    objective_error: None,
+                    position_error: None,
+                    residual: None,
+                },
+                note: Some(format!("failed: {message}")),
+                positions: Vec::new(),
+            },
+        };
+        progress(&format!(
+            "{} {}:{} done in {:.1} s",
+            problem.name,
+            spec.kind,
+            setting,
+            begin.elapsed().as_secs_f64()
+        ));
+        outcomes.push(outcome);
+    }
+    Ok(outcomes)
+}
+
+/// Run once untimed (the result), then `repeats` more if short; median times.
+fn timed(
+    timing: TimingOptions,
+    mut run: impl FnMut() -> Result<RunResult, String>,
+) -> Result<RunResult, String> {
+    let mut first = run()?;
+    if timing.repeats == 0 || first.wall.as_secs_f64() > timing.single_run_above {
+        return Ok(first);
+    }
+    let mut walls = Vec::with_capacity(timing.repeats);
+    let mut factors = Vec::with_capacity(timing.repeats);
+    for _ in 0..timing.repeats {
+        let r = run()?;
+        walls.push(r.wall);
+        factors.extend(r.factor);
+    }
+    first.wall = median(&mut walls);
+    if first.factor.is_some() && !factors.is_empty() {
+        first.factor = Some(median(&mut factors));
+    }
+    Ok(first)
+}
+
+/// The median (the mean of the two middle values for an even count).
+fn median(values: &mut [Duration]) -> Duration {
+    values.sort();
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        (values[n / 2 - 1] + values[n / 2]) / 2
+    }
+}
+
+/// A solver set up once per scene (PD's factorisation, Newton's symbolic analysis).
+enum Runner {
+    Pd {
+        pd: Box<ProjectiveDynamics<3>>,
+        x: Vec<Vector3<f64>>,
+    },
+    Newton {
+        newton: Box<Newton>,
+        objective: Box<BackwardEulerStep<3>>,
+        unknowns: Vec<f64>,
+    },
+    Linearized {
+        solver: LinearSolver,
+    },
+}
+
+impl Runner {
+    fn new(problem: &BenchProblem, kind: SolverKind) -> Result<Self, BenchError> {
+        let mesh = problem.scene.mesh();
+        let h = problem.scene.time_step();
+        let solver_error = |e: String| BenchError::Solver {
+            scene: problem.name.clone(),
+            solver: kind.name().into(),
+            reason: e,
+        };
+        Ok(match kind {
+            SolverKind::Pd | SolverKind::PdTol => {
+                let pd = ProjectiveDynamics::new(
+                    mesh.springs(),
+                    mesh.masses(),
+                    &problem.free(),
+                    h,
+                    PdParams::default(),
+                )
+                .map_err(|e| solver_error(e.to_string()))?;
+                Runner::Pd {
+                    pd: Box::new(pd),
+                    x: problem.y.clone(),
+                }
+            }
+            SolverKind::Newton | SolverKind::NewtonTol => {
+                let objective =
+                    BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
+                let newton = Newton::new(objective.pattern(), NewtonParams::default())
+                    .map_err(|e| solver_error(e.to_string()))?;
+                Runner::Newton {
+                    unknowns: vec![0.0; objective.dim()],
+                    newton: Box::new(newton),
+                    objective: Box::new(objective),
+                }
+            }
+            SolverKind::Cg | SolverKind::CgTol | SolverKind::LinearizedCg => Runner::Linearized {
+                solver: LinearSolver::ConjugateGradient,
+            },
+            SolverKind::Jacobi | SolverKind::JacobiTol | SolverKind::LinearizedJacobi => {
+                Runner::Linearized {
+                    solver: LinearSolver::Jacobi,
+                }
+            }
+        })
+    }
+
+    /// (iteration limit, tolerance) of a setting; `tolerance_none` is the "no tolerance" value.
+    fn limits(setting: Setting, tolerance_limit: usize, tolerance_none: f64) -> (usize, f64) {
+        match setting {
+            Setting::Iterations(k) => (k, tolerance_none),
+            Setting::Tolerance(t) => (tolerance_limit, t),
+            Setting::Default => (tolerance_limit, tolerance_none),
+        }
+    }
+
+    fn run(&mut self, problem: &BenchProblem, setting: Setting) -> Result<RunResult, String> {
+        let springs = problem.scene.mesh().springs();
+        match self {
+            Runner::Pd { pd, x } => {
+                let (max_iterations, tolerance) = Self::limits(setting, TOLERANCE_RUN_LIMIT, 0.0);
+                pd.params.max_iterations = max_iterations;
+                pd.params.tolerance = tolerance;
+                x.copy_from_slice(&problem.y);
+                let start = Instant::now();
+                let report = pd.solve(springs, &problem.y, x);
+                let wall = start.elapsed();
+                let note = (matches!(setting, Setting::Tolerance(_))
+                    && report.stop != StopReason::Converged)
+                    .then(|| format!("stopped at {TOLERANCE_RUN_LIMIT} iterations"));
+                Ok(RunResult {
+                    positions: x.clone(),
+                    iterations: report.iterations,
+                    wall,
+                    factor: Some(pd.factor_time()),
+                    note,
+                })
+            }
+            Runner::Newton {
+                newton,
+                objective,
+                unknowns,
+            } => {
+                let (max_iterations, tolerance) =
+                    Self::limits(setting, NEWTON_TOLERANCE_LIMIT, 0.0);
+                newton.params.max_iterations = max_iterations;
+                newton.params.tolerance = tolerance;
+                objective.set_step(&problem.y, &problem.start.positions, unknowns);
+                let report = newton
+                    .minimize(objective.as_mut(), unknowns)
+                    .map_err(|e| e.to_string())?;
+                let note = match (setting, report.stop) {
+                    (_, StopReason::Stagnated) => Some(format!(
+                        "stagnated at the round-off floor, relative gradient {:.1e}",
+                        report.gradient()
+                    )),
+                    (Setting::Tolerance(_), StopReason::IterationLimit) => {
+                        Some(format!("stopped at {NEWTON_TOLERANCE_LIMIT} iterations"))
+                    }
+                    _ => None,
+                };
+                let shifted =
+                    (report.shifted_steps > 0 || report.failed_factorizations > 0).then(|| {
+                        format!(
+                            "{} shifted step(s), {} failed factorisation(s)",
+                            report.shifted_steps, report.failed_factorizations
+                        )
+                    });
+                let note = match (note, shifted) {
+                    (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+                    (a, b) => a.or(b),
+                };
+                Ok(RunResult {
+                    positions: objective.positions(unknowns).to_vec(),
+                    iterations: report.iterations,
+                    wall: report.wall_time,
+                    factor: Some(report.factor_time),
+                    note,
+                })
+            }
+            Runner::Linearized { solver } => {
+                let defaults = LinearizedParams::default();
+                let (max_iterations, tolerance) = match setting {
+                    Setting::Iterations(k) => (k, f64::MIN_POSITIVE),
+                    Setting::Tolerance(t) => (TOLERANCE_RUN_LIMIT, t),
+                    Setting::Default => (defaults.max_iterations, defaults.tolerance),
+                };
+                let settings = Settings {
+                    integrator: Integrator::Linearized,
+                    linearized: LinearizedParams {
+                        beta: 1.0,
+                        solver: *solver,
+                        tolerance,
+                        max_iterations,
+                        ..defaults
+                    },
+                    ..Settings::default()
+                };
+                let mut sim =
+                    Simulation::new(problem.scene.clone(), problem.start.clone(), settings)
+                        .map_err(|e| e.to_string())?;
+                let report = sim.step().map_err(|e| e.to_string())?;
+                let summary = report
+                    .solver
+                    .ok_or("the linearised step reported no solve")?;
+                let mut notes = Vec::new();
+                if report.clamped_hessian {
+                    notes.push("clamped Hessian (the exact one was not positive definite)".into());
+                }
+                if !matches!(setting, Setting::Iterations(_))
+                    && summary.stop == StopReason::IterationLimit
+                {
+                    notes.push(format!(
+                        "linear solve stopped at its iteration limit, residual {:.1e}",
+                        summary.residual
+                    ));
+                }
+                Ok(RunResult {
+                    positions: sim.state().positions.clone(),
+                    iterations: summary.iterations,
+                    wall: report.wall_time,
+                    factor: None,
+                    note: (!notes.is_empty()).then(|| notes.join("; ")),
+                })
+            }
+        }
+    }
+}
