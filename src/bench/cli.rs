@@ -5,9 +5,9 @@ use std::time::Instant;
 
 use crate::bench::{
     format_hard_cases, format_sweep_table, format_table, hard_cases, load_setup, plot_pareto,
-    plot_sweep, run_spec, sweep, write_csv, write_json, BenchError, BenchProblem, ErrorMeter,
-    HardCaseOptions, PrepareOptions, Record, SolverSpec, StartState, SweepOptions, TimingOptions,
-    HARD_CASES, HARD_INTEGRATORS,
+    plot_sweep, run_spec, sweep, write_csv, write_frames, write_json, BenchError, BenchProblem,
+    ErrorMeter, HardCaseOptions, PrepareOptions, Record, SolverSpec, StartState, SweepOptions,
+    TimingOptions, HARD_CASES, HARD_INTEGRATORS,
 };
 
 /// Arguments of `hooke bench`.
@@ -31,6 +31,10 @@ pub struct BenchArgs {
     /// Write the records as CSV.
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
+    /// Write the positions of the step as OBJ files into this directory: x_n.obj, y.obj,
+    /// x_star.obj and SOLVER-SETTING.obj for each run (not with --sweep or --hard-cases).
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "hard_cases"])]
+    pub frames: Option<PathBuf>,
     /// Plot error against time (or, with --sweep, time against vertices) on log axes as a PNG.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
@@ -49,7 +53,7 @@ pub struct BenchArgs {
     pub hard_cases: bool,
     /// With --hard-cases: frames per run.
     #[arg(long, default_value_t = 30, requires = "hard_cases")]
-    pub frames: usize,
+    pub hard_frames: usize,
     /// Timed repeats of each step after one warm-up run; the median is reported. Steps longer than
     /// 2 s are timed once.
     #[arg(long, default_value_t = 5)]
@@ -111,7 +115,7 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
             HARD_CASES,
             HARD_INTEGRATORS,
             HardCaseOptions {
-                frames: args.frames,
+                frames: args.hard_frames,
                 ..HardCaseOptions::default()
             },
             &mut progress,
@@ -200,6 +204,9 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
     print!("{}", format_table(&outcomes));
     let records: Vec<Record> = outcomes.iter().map(|o| o.record.clone()).collect();
     write_outputs(args, &records)?;
+    if let Some(dir) = &args.frames {
+        write_frames(dir, &problem, &outcomes)?;
+    }
     if let Some(path) = &args.plot {
         plot_pareto(path, &records, &problem.name)?;
     }

@@ -47,7 +47,10 @@ pub use hard::{
     hard_cases, HardCaseOptions, HardOutcome, HardResult, HARD_CASES, HARD_INTEGRATORS,
 };
 pub use measure::{ErrorMeter, Measures};
-pub use output::{format_hard_cases, format_sweep_table, format_table, write_csv, write_json};
+pub use output::{
+    format_hard_cases, format_sweep_table, format_table, frame_file_name, write_csv, write_frames,
+    write_json, COLUMNS,
+};
 pub use plot::{plot_pareto, plot_sweep};
 pub use run::{run_spec, Outcome, Record, TimingOptions};
 pub use spec::{Setting, SolverKind, SolverSpec};

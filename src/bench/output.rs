@@ -3,7 +3,8 @@
 use std::io::Write;
 use std::path::Path;
 
-use crate::bench::{BenchError, HardOutcome, HardResult, Outcome, Record, SweepRow};
+use crate::bench::{BenchError, BenchProblem, HardOutcome, HardResult, Outcome, Record, SweepRow};
+use crate::mesh::io::{save_obj, Frame};
 
 /// The column names of the JSON records and the CSV header, in order.
 pub const COLUMNS: [&str; 9] = [
@@ -230,4 +231,42 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
         s += &details;
     }
     s
+}
+
+/// The OBJ file name of an outcome's positions in [`write_frames`]: `SOLVER-SETTING.obj`.
+pub fn frame_file_name(record: &Record) -> String {
+    format!("{}-{}.obj", record.solver, record.setting)
+}
+
+/// Write the step's positions as OBJ frames (vertex order of the scene, coordinates written so
+/// that they read back bit for bit) into `dir`: `x_n.obj` (the start state), `y.obj` (the inertial
+/// target and initial guess), `x_star.obj` (the reference, if computed), and one
+/// [`frame_file_name`] per outcome that produced positions.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn write_frames(
+    dir: &Path,
+    problem: &BenchProblem,
+    outcomes: &[Outcome],
+) -> Result<(), BenchError> {
+    std::fs::create_dir_all(dir).map_err(|e| output_error(dir, e))?;
+    let triangles = problem.scene.mesh().triangles();
+    let save = |name: &str, positions: &[nalgebra::Vector3<f64>]| {
+        let path = dir.join(name);
+        let frame = Frame {
+            triangles,
+            ..Frame::points(positions)
+        };
+        save_obj(&path, &frame).map_err(|e| output_error(&path, e))
+    };
+    save("x_n.obj", &problem.start.positions)?;
+    save("y.obj", &problem.y)?;
+    if let Some(x) = problem.x_star() {
+        save("x_star.obj", x)?;
+    }
+    for o in outcomes.iter().filter(|o| !o.positions.is_empty()) {
+        save(&frame_file_name(&o.record), &o.positions)?;
+    }
+    Ok(())
 }
