@@ -116,3 +116,25 @@ fn sweep_command_writes_json_csv_and_plot() {
     let bytes = std::fs::read(&png).unwrap();
     assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
 }
+
+#[test]
+fn a_cached_reference_does_not_bring_errors_into_a_sweep_without_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let setup = hooke::bench::load_setup("cloth-10").unwrap();
+    let prepare = hooke::bench::PrepareOptions {
+        start: StartState::Rest,
+        reference: true,
+        cache_dir: Some(dir.path().to_path_buf()),
+    };
+    hooke::bench::BenchProblem::prepare(&setup, &prepare, &mut |_| {}).unwrap();
+    let options = SweepOptions {
+        sizes: vec![10],
+        cache_dir: Some(dir.path().to_path_buf()),
+        ..options(false)
+    };
+    let mut log = Vec::new();
+    let rows = sweep(&specs()[..1], &options, &mut |l| log.push(l.to_string())).unwrap();
+    assert!(log.iter().any(|l| l.contains("read from")), "{log:?}");
+    let r = &rows[0].outcome.record;
+    assert_eq!((r.objective_error, r.position_error), (None, None), "{r:?}");
+}

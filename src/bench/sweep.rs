@@ -68,7 +68,7 @@ pub fn sweep(
     for &n in &options.sizes {
         let setup = load_setup(&format!("cloth-{n}"))?;
         let vertices = setup.scene.mesh().vertex_count();
-        let problem = BenchProblem::prepare(
+        let mut problem = BenchProblem::prepare(
             &setup,
             &PrepareOptions {
                 start: options.start,
@@ -77,6 +77,10 @@ pub fn sweep(
             },
             progress,
         )?;
+        if !options.errors {
+            // A reference read from the cache is not used either: errors only when asked for.
+            problem.reference = None;
+        }
         let mut meter = ErrorMeter::new(&problem);
         for spec in specs {
             for mut outcome in run_spec(&problem, &mut meter, spec, options.timing, progress)? {
