@@ -61,7 +61,7 @@ impl ErrorMeter {
         let gather = |full: &[Vector3<f64>]| -> Vec<f64> {
             free_vertices
                 .iter()
-                .flat_map(|&v| full[v as usize].iter().copied().collect::<Vec<_>>())
+                .flat_map(|&v| full[v as usize].iter().copied())
                 .collect()
         };
         let x_n = gather(&problem.start.positions);
