@@ -7,7 +7,7 @@
 //! - [`assembly`]: spring energies, forces and their derivatives;
 //! - [`solvers`]: linear and nonlinear solvers;
 //! - [`sim`]: scenes, forces, damping, contact and time integration;
-//! - [`bench`]: speed against error (SPEC §8), the library behind `hooke bench`.
+//! - [`bench`](mod@bench): speed against error (SPEC §8), the library behind `hooke bench`.
 //!
 //! The `hooke` command-line program runs scenes and writes frames, a summary and a preview.
 #![deny(missing_docs)]
