@@ -250,12 +250,13 @@ impl Runner {
         })
     }
 
-    /// (iteration limit, tolerance) of a setting; `tolerance_none` is the "no tolerance" value.
-    fn limits(setting: Setting, tolerance_limit: usize, tolerance_none: f64) -> (usize, f64) {
+    /// (iteration limit, tolerance) of a setting: a count runs exactly that many iterations (no
+    /// tolerance), a tolerance runs up to `tolerance_limit` iterations, `Default` is `default`.
+    fn limits(setting: Setting, tolerance_limit: usize, default: (usize, f64)) -> (usize, f64) {
         match setting {
-            Setting::Iterations(k) => (k, tolerance_none),
+            Setting::Iterations(k) => (k, 0.0),
             Setting::Tolerance(t) => (tolerance_limit, t),
-            Setting::Default => (tolerance_limit, tolerance_none),
+            Setting::Default => default,
         }
     }
 
@@ -263,7 +264,12 @@ impl Runner {
         let springs = problem.scene.mesh().springs();
         match self {
             Runner::Pd { pd, x } => {
-                let (max_iterations, tolerance) = Self::limits(setting, TOLERANCE_RUN_LIMIT, 0.0);
+                let defaults = PdParams::default();
+                let (max_iterations, tolerance) = Self::limits(
+                    setting,
+                    TOLERANCE_RUN_LIMIT,
+                    (defaults.max_iterations, defaults.tolerance),
+                );
                 pd.params.max_iterations = max_iterations;
                 pd.params.tolerance = tolerance;
                 x.copy_from_slice(&problem.y);
@@ -286,8 +292,10 @@ impl Runner {
                 objective,
                 unknowns,
             } => {
-                let (max_iterations, tolerance) =
-                    Self::limits(setting, NEWTON_TOLERANCE_LIMIT, 0.0);
+                let (max_iterations, tolerance) = Self::limits(setting, NEWTON_TOLERANCE_LIMIT, {
+                    let d = NewtonParams::default();
+                    (d.max_iterations, d.tolerance)
+                });
                 newton.params.max_iterations = max_iterations;
                 newton.params.tolerance = tolerance;
                 objective.set_step(&problem.y, &problem.start.positions, unknowns);
