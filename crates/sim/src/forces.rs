@@ -187,6 +187,25 @@ impl<const D: usize> ExternalForces<D> {
         f
     }
 
+    /// The buoyancy part of [`ExternalForces::force`] alone (N): the implicit integrators evaluate it
+    /// at the start of the step, where the others enter their objective exactly.
+    pub(crate) fn buoyancy_force(&self, mass: f64, x: &SVector<f64, D>) -> SVector<f64, D> {
+        let mut f = SVector::zeros();
+        for force in &self.forces {
+            if let ExternalForce::Buoyancy {
+                fluid_density,
+                body_density,
+                surface,
+            } = force
+            {
+                if x.dot(&self.up) < *surface {
+                    f += self.up * (self.g_norm * fluid_density / body_density * mass);
+                }
+            }
+        }
+        f
+    }
+
     /// The potential energy (J) of the conservative external forces for one vertex (wind has none).
     #[inline]
     pub fn potential(&self, mass: f64, x: &SVector<f64, D>) -> f64 {

@@ -197,35 +197,39 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     /// Φ(trial) − Φ(x) term by term, so that its round-off is relative to the change rather than to
-    /// Φ: per vertex ½ m (t − x)·(t + x − 2y); per spring ½ k (|r_t| − |r_x|)(|r_t| + |r_x| − 2l) with
-    /// |r_t| − |r_x| = (r_t − r_x)·(r_t + r_x) / (|r_t| + |r_x|). Summed in a fixed order.
+    /// Φ. Everything is written in the displacements δ = t − x (exact in floating point for nearby
+    /// t and x), never as a difference of two rounded values of a term: per vertex
+    /// ½ m δ·(2(x − y) + δ); per spring, with Δr = δ_i − δ_j and r_t = r_x + Δr,
+    /// ½ k (|r_t| − |r_x|)(|r_t| + |r_x| − 2l) where |r_t| − |r_x| = Δr·(2 r_x + Δr) / (|r_t| + |r_x|);
+    /// the dashpot likewise. Summed in a fixed order.
     fn objective_change(&mut self, xf: &[f64], trial: &[f64]) -> f64 {
+        self.expand(xf);
+        // trial_positions holds δ per vertex (zero at pinned ones).
+        for d in self.trial_positions.iter_mut() {
+            *d = SVector::zeros();
+        }
         let mut inertia = 0.0;
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
             let x = SVector::<f64, D>::from_column_slice(&xf[D * f..D * f + D]);
             let t = SVector::<f64, D>::from_column_slice(&trial[D * f..D * f + D]);
-            inertia += 0.5 * self.masses[v] * (t - x).dot(&(t + x - self.y[v] * 2.0));
+            let delta = t - x;
+            self.trial_positions[v] = delta;
+            inertia += 0.5 * self.masses[v] * delta.dot(&((x - self.y[v]) * 2.0 + delta));
         }
-        // Positions before (self.x) and after (self.trial_positions) the step, pinned ones shared.
-        self.expand(xf);
-        self.trial_positions.copy_from_slice(&self.x);
-        for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            self.trial_positions[v as usize] = SVector::from_column_slice(&trial[D * f..D * f + D]);
-        }
-        let (before, after) = (&self.x, &self.trial_positions);
+        let (x, delta) = (&self.x, &self.trial_positions);
         let springs = &self.springs;
         let energy = hooke_assembly::deterministic_sum(springs.len(), true, |s| {
             let spring = &springs[s];
             let (i, j) = spring.ends();
-            let r_x = before[i] - before[j];
-            let r_t = after[i] - after[j];
-            let (len_x, len_t) = (r_x.norm(), r_t.norm());
-            let sum = len_x + len_t;
+            let r_x = x[i] - x[j];
+            let dr = delta[i] - delta[j];
+            let r_t = r_x + dr;
+            let sum = r_x.norm() + r_t.norm();
             if sum == 0.0 {
                 return 0.0;
             }
-            let difference = (r_t - r_x).dot(&(r_t + r_x)) / sum;
+            let difference = dr.dot(&(r_x * 2.0 + dr)) / sum;
             0.5 * spring.stiffness * difference * (sum - 2.0 * spring.rest_length)
         });
         let dashpot = if self.dashpot == 0.0 {
@@ -233,11 +237,11 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         } else {
             let this = &*self;
             let sum = hooke_assembly::deterministic_sum(this.springs.len(), true, |s| {
-                let (a_x, a_t) = (
-                    this.dashpot_stretch(s, &this.x),
-                    this.dashpot_stretch(s, &this.trial_positions),
-                );
-                (a_t - a_x) * (a_t + a_x)
+                let (i, j) = this.springs[s].ends();
+                let a_x = this.dashpot_stretch(s, &this.x);
+                let da = (this.trial_positions[i] - this.trial_positions[j])
+                    .dot(&this.dashpot_directions[s]);
+                da * (2.0 * a_x + da)
             });
             0.5 * this.h * this.dashpot * sum
         };
@@ -264,6 +268,49 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
             g[D * f..D * f + D].copy_from_slice(gv.as_slice());
         }
+    }
+
+    /// ε times the sizes of the terms the gradient sums per DOF: |m (x − y)| and h² Σ_s |f_s| over
+    /// the vertex's springs (and the dashpot's), with a factor for the number of terms (the
+    /// largest vertex degree + 2, the usual bound on a sum's rounding).
+    fn gradient_round_off(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        let h2 = self.h * self.h;
+        // Per vertex: Σ |f_s| (into `force`, reused) and the degree (into `trial_positions[v][0]`
+        // is not used: count in a local pass instead).
+        for f in self.force.iter_mut() {
+            *f = SVector::zeros();
+        }
+        let mut degree = vec![0usize; self.x.len()];
+        for (s, spring) in self.springs.iter().enumerate() {
+            let (i, j) = spring.ends();
+            let mut f = hooke_assembly::spring::force(
+                spring.stiffness,
+                spring.rest_length,
+                &(self.x[i] - self.x[j]),
+            )
+            .abs();
+            if self.dashpot > 0.0 {
+                f += (self.dashpot_directions[s]
+                    * (self.h * self.dashpot / h2 * self.dashpot_stretch(s, &self.x)))
+                .abs();
+            }
+            self.force[i] += f;
+            self.force[j] += f;
+            degree[i] += 1;
+            degree[j] += 1;
+        }
+        let terms = degree.iter().max().copied().unwrap_or(0) as f64 + 2.0;
+        let sum: f64 = self
+            .free
+            .free_vertices()
+            .iter()
+            .map(|&v| {
+                let v = v as usize;
+                ((self.x[v] - self.y[v]).abs() * self.masses[v] + self.force[v] * h2).norm_squared()
+            })
+            .sum();
+        terms * f64::EPSILON * sum.sqrt()
     }
 
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {

@@ -58,6 +58,13 @@ pub trait NewtonProblem {
     }
     /// g = ∇Φ(x).
     fn gradient(&mut self, x: &[f64], g: &mut [f64]);
+    /// The size of the rounding error of [`NewtonProblem::gradient`] at x, in the gradient's norm: a
+    /// gradient this small is noise, and a line search along a direction made from it may find no
+    /// decrease. Newton then reports [`StopReason::Stagnated`] instead of an error. Default 0 (no
+    /// estimate: every failed line search is an error).
+    fn gradient_round_off(&mut self, _x: &[f64]) -> f64 {
+        0.0
+    }
     /// The Hessian's sparsity pattern (never changes; every diagonal entry must be stored).
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize>;
     /// Refill the Hessian's values at x and return it.
@@ -391,9 +398,15 @@ impl Newton {
                             break (accepted, negative);
                         }
                         if negative == 0 {
-                            // A descent direction of a convex model on which no step lowers Φ:
-                            // the objective and its gradient disagree beyond what a shift fixes.
                             report.failed_factorizations += failed;
+                            // A descent direction of a convex model on which no step lowers Φ:
+                            // either the gradient is round-off (the tolerance is below what the
+                            // arithmetic resolves), or objective and gradient disagree.
+                            let noise = problem.gradient_round_off(x);
+                            let norm = dot(&self.g, &self.g).sqrt();
+                            if norm <= noise {
+                                return Ok(finish(report, StopReason::Stagnated));
+                            }
                             return Err(NewtonError::LineSearchFailed {
                                 report: Box::new(finish(report, StopReason::IterationLimit)),
                             });
