@@ -100,6 +100,25 @@ pub enum SimError {
         #[source]
         source: hooke_solvers::SolveError,
     },
+    /// The total energy of a scene without energy sources rose beyond the watchdog's limit
+    /// ([`Settings::energy_limit`](crate::Settings::energy_limit)): the run is unstable.
+    #[error(
+        "step {step}: the total energy rose to {energy:.3e} J from {initial:.3e} J, beyond the \
+         limit {limit:.3e} J of a scene without energy sources: the {integrator} run is unstable \
+         (try a smaller step, more substeps, or backward Euler: newton, pd)"
+    )]
+    EnergyGrowth {
+        /// The step (1-based) after which it happened.
+        step: usize,
+        /// The integrator's name.
+        integrator: &'static str,
+        /// The total energy after the step, J.
+        energy: f64,
+        /// The total energy at the start, J.
+        initial: f64,
+        /// The limit it crossed, J.
+        limit: f64,
+    },
     /// The state became NaN or infinite.
     #[error("step {step}: vertex {vertex} has a non-finite {quantity}; the simulation diverged")]
     NonFinite {

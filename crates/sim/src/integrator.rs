@@ -248,6 +248,16 @@ pub struct Settings {
     pub allow_unstable: bool,
     /// Use rayon for the per-spring and per-vertex loops (results are identical either way).
     pub parallel: bool,
+    /// Energy watchdog (dimensionless factor; default 1): stop with
+    /// [`SimError::EnergyGrowth`] when the total energy exceeds E₀ + `energy_limit` · (|E₀| + E_g),
+    /// E₀ the energy at the start and E_g = M |g| L the scene's gravitational energy scale (total
+    /// mass, gravity, diagonal of the initial bounding box). Without energy sources the exact
+    /// motion keeps E = E₀ and damping and contact only lower it, so a run that gains more than the
+    /// scene's own energy scale is an instability (explicit methods past their bound, the
+    /// linearised step overshooting), not physics. Only checked for scenes without energy sources
+    /// (no wind, no pins on a path), and not when [`Settings::allow_unstable`] forces the run (the
+    /// divergence checks still stop an explosion); `None` turns it off.
+    pub energy_limit: Option<f64>,
     /// The linearised integrator's settings (default: β = 1, CG to 1e-8).
     pub linearized: LinearizedParams,
     /// Newton's settings (default: relative gradient 1e-8).
@@ -263,6 +273,7 @@ impl Default for Settings {
             substeps: None,
             allow_unstable: false,
             parallel: true,
+            energy_limit: Some(1.0),
             linearized: LinearizedParams::default(),
             newton: hooke_solvers::NewtonParams::default(),
             pd: hooke_solvers::PdParams::default(),

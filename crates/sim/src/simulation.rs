@@ -58,6 +58,8 @@ pub struct Simulation<const D: usize> {
     moving: Vec<(usize, usize, SVector<f64, D>)>,
     /// Pinned positions at the end of the current step (full numbering; free entries unused).
     next_pinned: Vec<SVector<f64, D>>,
+    /// The energy watchdog's limit (J), if it applies.
+    energy_limit: Option<(f64, f64)>,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -144,6 +146,28 @@ impl<const D: usize> Simulation<D> {
             .flat_map(|p| p.iter())
             .fold(0.0f64, |m, c| m.max(c.abs()));
         let divergence_limit = DIVERGENCE_FACTOR * (1.0 + extent);
+        let has_sources = !scene.pin_paths().is_empty()
+            || scene
+                .forces()
+                .as_slice()
+                .iter()
+                .any(|f| matches!(f, crate::ExternalForce::Wind { .. }));
+        let energy_limit = match settings.energy_limit {
+            Some(factor) if !has_sources && !settings.allow_unstable => {
+                crate::error::non_negative("energy limit", factor)?;
+                let mut min = state.positions[0];
+                let mut max = state.positions[0];
+                for p in &state.positions {
+                    min = min.inf(p);
+                    max = max.sup(p);
+                }
+                let g = scene.forces().gravity().map_or(0.0, |g| g.norm());
+                let scale = scene.mesh().total_mass() * g * (max - min).norm();
+                let initial = scene.energy(&state).total;
+                Some((initial, initial + factor * (initial.abs() + scale)))
+            }
+            _ => None,
+        };
         Ok(Simulation {
             force: vec![SVector::zeros(); n],
             spring_forces,
@@ -159,6 +183,7 @@ impl<const D: usize> Simulation<D> {
             linearized,
             moving,
             next_pinned: vec![SVector::zeros(); n],
+            energy_limit,
         })
     }
 
@@ -218,8 +243,12 @@ impl<const D: usize> Simulation<D> {
     /// Advance one frame of the scene's time step.
     ///
     /// # Errors
-    /// [`SimError::NonFinite`] if the state became NaN or infinite (the simulation diverged); the
-    /// state is then left as it was at the failure.
+    /// - [`SimError::NonFinite`] if the state became NaN or infinite, [`SimError::Diverged`] if it
+    ///   ran far outside the scene, [`SimError::EnergyGrowth`] if the energy of a scene without
+    ///   energy sources rose past [`Settings::energy_limit`]'s bound (the simulation is unstable);
+    ///   the state is then left as it was at the failure;
+    /// - [`SimError::LinearSolve`] if the linearised integrator's linear solve failed, and
+    ///   [`SimError::Solver`] if Newton failed (the state is then unspecified).
     pub fn step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
         let mut solver = None;
@@ -259,6 +288,18 @@ impl<const D: usize> Simulation<D> {
         self.state.time = self.start_time + self.steps_taken as f64 * self.scene.time_step();
         check_finite(&self.state, self.steps_taken)?;
         self.check_bounded()?;
+        if let Some((initial, limit)) = self.energy_limit {
+            let energy = self.energy().total;
+            if energy.is_nan() || energy > limit {
+                return Err(SimError::EnergyGrowth {
+                    step: self.steps_taken,
+                    integrator: self.settings.integrator.name(),
+                    energy,
+                    initial,
+                    limit,
+                });
+            }
+        }
         Ok(StepReport {
             substeps: self.substeps,
             solver,
