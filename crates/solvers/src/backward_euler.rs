@@ -270,9 +270,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         }
     }
 
-    /// ε times the sizes of the terms the gradient sums per DOF: |m (x − y)| and h² Σ_s |f_s| over
-    /// the vertex's springs (and the dashpot's), with a factor for the number of terms (the
-    /// largest vertex degree + 2, the usual bound on a sum's rounding).
+    /// ε times the sizes of the terms the gradient sums per DOF: m (|x − y| + |x|) and
+    /// h² Σ_s (|f_s| + k_s (|x_i| + |x_j|)) over the vertex's springs (and the dashpot's), the |x|
+    /// terms for the rounding of the positions themselves, with a factor for the number of terms
+    /// (the largest vertex degree + 2, the usual bound on a sum's rounding).
     fn gradient_round_off(&mut self, xf: &[f64]) -> f64 {
         self.expand(xf);
         let h2 = self.h * self.h;
@@ -289,7 +290,9 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 spring.rest_length,
                 &(self.x[i] - self.x[j]),
             )
-            .abs();
+            .abs()
+                // Rounding of r = x_i − x_j itself moves |r| − l by ε (|x_i| + |x_j|).
+                + SVector::repeat(spring.stiffness * (self.x[i].norm() + self.x[j].norm()));
             if self.dashpot > 0.0 {
                 f += (self.dashpot_directions[s]
                     * (self.h * self.dashpot / h2 * self.dashpot_stretch(s, &self.x)))
@@ -307,7 +310,11 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             .iter()
             .map(|&v| {
                 let v = v as usize;
-                ((self.x[v] - self.y[v]).abs() * self.masses[v] + self.force[v] * h2).norm_squared()
+                // |x| as well as |x − y|: y and x carry their own rounding of ε |x|.
+                ((self.x[v] - self.y[v]).abs() * self.masses[v]
+                    + SVector::repeat(self.masses[v] * self.x[v].norm())
+                    + self.force[v] * h2)
+                    .norm_squared()
             })
             .sum();
         terms * f64::EPSILON * sum.sqrt()
