@@ -63,7 +63,7 @@ struct RunArgs {
     #[arg(long, value_name = "NAME")]
     linear_solver: Option<String>,
     /// Solver iterations: the linear solver's limit (linearized, default 1000), Newton's iteration
-    /// limit (newton, default 50), iterations per step (pd, default 10).
+    /// limit (newton, default 100), iterations per step (pd, default 10).
     #[arg(long, value_name = "K")]
     iterations: Option<usize>,
     /// Relative tolerance, > 0: the linear solver's residual (linearized, default 1e-8), Newton's

@@ -137,7 +137,17 @@ fn errors_are_clear_and_not_panics() {
             &["run", "cloth-10", "--integrator", "rk4"],
             "unknown integrator",
         ),
-        (&["run", "cloth-10", "--substeps", "1"], "stability bound"),
+        (
+            &[
+                "run",
+                "cloth-10",
+                "--integrator",
+                "symplectic-euler",
+                "--substeps",
+                "1",
+            ],
+            "stability bound",
+        ),
     ];
     for (args, expected) in cases {
         let mut all = args.to_vec();

@@ -143,7 +143,13 @@ pub fn cloth(n: usize, stiff: bool) -> Result<Setup<3>, SimError> {
     } else {
         format!("cloth-{n}")
     };
-    Ok(Setup::new(name, scene, 30, Settings::default()))
+    // Backward Euler by Newton at the frame step: unconditionally stable, no substeps (issue 5's
+    // default; the explicit integrators need ~100 substeps a frame here).
+    let settings = Settings {
+        integrator: Integrator::Newton,
+        ..Settings::default()
+    };
+    Ok(Setup::new(name, scene, 30, settings))
 }
 
 /// beam-R (SCENES.md): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
