@@ -74,6 +74,7 @@ fn symplectic_euler_keeps_the_energy_of_an_undamped_run() {
     // the largest kinetic energy of the run (measured: 0.06 %; the margin covers other platforms'
     // rounding, not a different behaviour), and it does not drift.
     let mut setup = scenes::cloth(10, false).unwrap();
+    setup.settings.integrator = Integrator::SymplecticEuler;
     let auto = Simulation::new(setup.scene.clone(), setup.initial.clone(), setup.settings)
         .unwrap()
         .substeps();
@@ -334,6 +335,7 @@ steps = 3
 #[test]
 fn explicit_steps_above_the_bound_are_refused_unless_forced() {
     let mut setup = scenes::cloth(10, true).unwrap();
+    setup.settings.integrator = Integrator::SymplecticEuler;
     setup.settings.substeps = Some(1);
     match Simulation::new(setup.scene.clone(), setup.initial.clone(), setup.settings) {
         Err(SimError::UnstableStep {
@@ -362,7 +364,11 @@ fn explicit_steps_above_the_bound_are_refused_unless_forced() {
 
 #[test]
 fn contact_keeps_the_cloth_out_of_the_ground_and_the_sphere() {
-    let setup = scenes::cloth(12, false).unwrap();
+    // Symplectic Euler with substeps: contact is a projection after each (sub)step, which a
+    // backward Euler frame of 1/30 s overshoots (measured: Newton gains 15.6 J at frame 7, past the
+    // energy watchdog; contact inside the implicit solve is future work).
+    let mut setup = scenes::cloth(12, false).unwrap();
+    setup.settings.integrator = Integrator::SymplecticEuler;
     let ground = -0.5;
     let scene = setup
         .scene
