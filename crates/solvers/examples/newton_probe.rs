@@ -6,7 +6,8 @@
 //! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [shift]`
 //! (`shift`: use `IndefinitePolicy::Shift` instead of the default). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
-//! to get there).
+//! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
+//! and z; crushed to 1 %).
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -35,6 +36,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut newton = Newton::new(step.pattern(), params)?;
     let mut x = mesh.positions().to_vec();
+    // HOOKE_START=stretch3 | crush: SCENES.md's hard-case starts (×3 in x and z; to 1 %).
+    match std::env::var("HOOKE_START").as_deref() {
+        Ok("stretch3") => x.iter_mut().for_each(|p| {
+            p.x *= 3.0;
+            p.z *= 3.0
+        }),
+        Ok("crush") => x.iter_mut().for_each(|p| *p *= 0.01),
+        _ => {}
+    }
     let mut v = vec![Vector3::zeros(); x.len()];
     let mut unknowns = vec![0.0; step.dim()];
     // HOOKE_STATE=file: load the state after 10 steps from `file` if it exists (and start at step
