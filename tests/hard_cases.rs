@@ -24,13 +24,9 @@
 
 use std::time::Instant;
 
-use hooke::sim::scenes;
-use hooke::sim::{
-    stability_bound, Integrator, LinearSolver, LinearizedParams, Pins, Scene, Settings, SimError,
-    Simulation, State,
-};
-use hooke::solvers::{NewtonParams, StopReason};
-use nalgebra::Vector3;
+use hooke::bench::{energy_scale, hard_case, hard_case_settings, HARD_CASES, HARD_INTEGRATORS};
+use hooke::sim::{Scene, SimError, Simulation, State};
+use hooke::solvers::StopReason;
 
 const N: usize = 40;
 /// Frames per run.
@@ -46,178 +42,32 @@ const MAX_SUBSTEPS: usize = 1000;
 /// with "the Hessian could not be made positive definite (shift above 1e12) at iteration 126".)
 const NEWTON_KNOWN_FAILURES: &[&str] = &["stretched x3", "crushed to 1%"];
 
-/// SplitMix64: a small seeded generator, so the random cases are the same on every machine.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-fn cloth(stiff: bool) -> (Scene<3>, State<3>) {
-    let setup = scenes::cloth(N, stiff).unwrap();
-    (setup.scene, setup.initial)
-}
-
-/// The hard cases of SCENES.md, by name.
+/// The hard case `name` on cloth-40, built by the library (`hooke::bench::hard_case`, shared with
+/// `hooke bench --hard-cases`), with the two properties SCENES.md states checked here.
 fn case(name: &str) -> (Scene<3>, State<3>) {
+    let (scene, state) = hard_case(name, N).unwrap();
     match name {
-        "stiff h=1/30" => cloth(true),
-        "stiff h=1/5" => {
-            let (scene, state) = cloth(true);
-            (scene.with_time_step(0.2).unwrap(), state)
-        }
-        "stretched x3" => {
-            let (scene, mut state) = cloth(false);
-            for p in &mut state.positions {
-                p.x *= 3.0;
-                p.z *= 3.0;
-            }
-            (scene, state)
-        }
-        "crushed to 1%" => {
-            let (scene, mut state) = cloth(false);
-            for p in &mut state.positions {
-                *p *= 0.01;
-            }
-            (scene, state)
-        }
-        "k 1e1..1e7" => {
-            let (scene, state) = cloth(false);
-            let mut rng = Rng(2024);
-            let mesh = scene
-                .mesh()
-                .clone()
-                .map_stiffness(|_, _| 10f64.powf(1.0 + 6.0 * rng.next()))
-                .unwrap();
-            let scene = rebuild(&scene, mesh);
-            (scene, state)
-        }
         "mass ratio 1e4" => {
-            let (scene, state) = cloth(false);
-            let mut rng = Rng(7);
-            let n = scene.mesh().vertex_count();
-            let mesh = scene
-                .mesh()
-                .clone()
-                .map_masses(|v, m| match v {
-                    // The extremes, exactly 1e4 apart; log-uniform in between.
-                    _ if v == n / 2 => m * 100.0,
-                    _ if v == n / 2 + 1 => m / 100.0,
-                    _ => m * 10f64.powf(-2.0 + 4.0 * rng.next()),
-                })
-                .unwrap();
-            let masses = mesh.masses();
+            let masses = scene.mesh().masses();
             let ratio = masses.iter().cloned().fold(0.0, f64::max)
                 / masses.iter().cloned().fold(f64::INFINITY, f64::min);
             assert!((ratio / 1e4 - 1.0).abs() < 1e-12, "mass ratio {ratio}");
-            (rebuild(&scene, mesh), state)
         }
         "zero-length spring" => {
-            let (scene, mut state) = cloth(false);
-            // Vertex (20, 20) onto (20, 21): their structural spring has length 0.
-            let (a, b) = (20 * N + 20, 20 * N + 21);
-            state.positions[a] = state.positions[b];
             let zero = scene
                 .mesh()
                 .springs()
                 .iter()
-                .filter(|s| (s.i as usize, s.j as usize) == (a, b))
+                .filter(|s| {
+                    (state.positions[s.i as usize] - state.positions[s.j as usize]).norm() == 0.0
+                })
                 .count();
-            assert_eq!(zero, 1);
-            (scene, state)
+            assert_eq!(zero, 1, "exactly one spring of zero length");
         }
-        "free-floating" => {
-            // No pins; spinning about the vertical axis through its centre at 2 rad/s, falling.
-            let (scene, mut state) = cloth(false);
-            let scene = Scene::new(scene.mesh().clone(), scene.time_step())
-                .unwrap()
-                .with_forces(scene.forces().as_slice().to_vec())
-                .unwrap();
-            let centre = Vector3::new(0.5, 0.0, 0.5);
-            for (p, v) in state.positions.iter().zip(&mut state.velocities) {
-                *v = Vector3::new(0.0, 2.0, 0.0).cross(&(p - centre));
-            }
-            (scene, state)
-        }
-        other => unreachable!("{other}"),
+        "free-floating" => assert!(scene.pinned().is_empty(), "no pins"),
+        _ => {}
     }
-}
-
-/// The scene with another mesh of the same topology (same pins, forces and time step).
-fn rebuild(scene: &Scene<3>, mesh: hooke::mesh::SpringMesh<3>) -> Scene<3> {
-    Scene::new(mesh, scene.time_step())
-        .unwrap()
-        .with_pins(Pins::Vertices(scene.pinned().to_vec()))
-        .unwrap()
-        .with_forces(scene.forces().as_slice().to_vec())
-        .unwrap()
-}
-
-const CASES: &[&str] = &[
-    "stiff h=1/30",
-    "stiff h=1/5",
-    "stretched x3",
-    "crushed to 1%",
-    "k 1e1..1e7",
-    "mass ratio 1e4",
-    "zero-length spring",
-    "free-floating",
-];
-
-const INTEGRATORS: &[&str] = &[
-    "explicit-euler",
-    "symplectic-euler",
-    "linearized-cg",
-    "linearized-jacobi",
-    "newton",
-    "pd",
-];
-
-fn settings(name: &str, scene: &Scene<3>) -> Settings {
-    let explicit = |integrator| {
-        let bound = stability_bound(scene);
-        let (safe, _) = bound.for_integrator(integrator, scene.time_step());
-        let needed = (scene.time_step() / safe).ceil();
-        Settings {
-            integrator,
-            substeps: Some((needed as usize).clamp(1, MAX_SUBSTEPS)),
-            ..Settings::default()
-        }
-    };
-    let linearized = |solver| Settings {
-        integrator: Integrator::Linearized,
-        linearized: LinearizedParams {
-            solver,
-            ..LinearizedParams::default()
-        },
-        ..Settings::default()
-    };
-    match name {
-        "explicit-euler" => explicit(Integrator::ExplicitEuler),
-        "symplectic-euler" => explicit(Integrator::SymplecticEuler),
-        "linearized-cg" => linearized(LinearSolver::ConjugateGradient),
-        "linearized-jacobi" => linearized(LinearSolver::Jacobi),
-        "newton" => Settings {
-            integrator: Integrator::Newton,
-            newton: NewtonParams {
-                max_iterations: 200,
-                ..NewtonParams::default()
-            },
-            ..Settings::default()
-        },
-        "pd" => Settings {
-            integrator: Integrator::ProjectiveDynamics,
-            ..Settings::default()
-        },
-        other => unreachable!("{other}"),
-    }
+    (scene, state)
 }
 
 /// How a run ended.
@@ -237,7 +87,7 @@ enum Outcome {
 
 fn run(case_name: &str, integrator: &str) -> Outcome {
     let (scene, state) = case(case_name);
-    let settings = settings(integrator, &scene);
+    let settings = hard_case_settings(integrator, &scene, MAX_SUBSTEPS).unwrap();
     let mut sim = match Simulation::new(scene, state, settings) {
         Ok(sim) => sim,
         Err(error) => return Outcome::Stopped { frame: 0, error },
@@ -280,17 +130,6 @@ fn run(case_name: &str, integrator: &str) -> Outcome {
         scale,
         unconverged,
     }
-}
-
-/// E_g = M |g| L (J): total mass, gravity, diagonal of the bounding box of `positions`.
-fn energy_scale(scene: &Scene<3>, positions: &[Vector3<f64>]) -> f64 {
-    let (mut min, mut max) = (positions[0], positions[0]);
-    for p in positions {
-        min = min.inf(p);
-        max = max.sup(p);
-    }
-    let g = scene.forces().gravity().map_or(0.0, |g| g.norm());
-    scene.mesh().total_mass() * g * (max - min).norm()
 }
 
 fn error_kind(e: &SimError) -> &'static str {
@@ -394,18 +233,18 @@ fn matrix(cases: &[&str], integrators: &[&str]) -> Vec<String> {
 
 #[test]
 fn every_integrator_but_newton_on_every_hard_case() {
-    let integrators: Vec<&str> = INTEGRATORS
+    let integrators: Vec<&str> = HARD_INTEGRATORS
         .iter()
         .copied()
         .filter(|&i| i != "newton")
         .collect();
-    let failures = matrix(CASES, &integrators);
+    let failures = matrix(HARD_CASES, &integrators);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]
 fn newton_finishes_every_hard_case() {
-    let cases: Vec<&str> = CASES
+    let cases: Vec<&str> = HARD_CASES
         .iter()
         .copied()
         .filter(|c| !NEWTON_KNOWN_FAILURES.contains(c))
@@ -414,8 +253,13 @@ fn newton_finishes_every_hard_case() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+// Ignored because it fails today, and is kept (not deleted, not loosened) as the check that issue 4
+// must make pass: Newton has to finish these two cases like the others. Measured this session
+// (`HOOKE_START=stretch3|crush newton_probe 40 3`): stretched ×3 needs 209 and 95 iterations in
+// its 2nd and 3rd steps, crushed to 1 % stops its 1st step at 300 iterations (gradient 5e-4);
+// `cargo test --test hard_cases -- --ignored` runs it.
 #[test]
-#[ignore = "issue 4: Newton does not converge on stretched x3 and crushed to 1%: a step stops at the 200-iteration limit (at 15f0cfe)"]
+#[ignore = "issue 4: Newton does not converge on stretched x3 and crushed to 1%: a step stops at the 200-iteration limit"]
 fn newton_finishes_the_hard_cases_it_does_not_yet() {
     let failures = matrix(NEWTON_KNOWN_FAILURES, &["newton"]);
     assert!(failures.is_empty(), "{}", failures.join("\n"));

@@ -130,8 +130,8 @@ pub fn hard_cases(
     let mut results = Vec::new();
     for &case_name in cases {
         for &integrator in integrators {
-            let (scene, state) = case(case_name, options.n)?;
-            let settings = settings(integrator, &scene, options.max_substeps)?;
+            let (scene, state) = hard_case(case_name, options.n)?;
+            let settings = hard_case_settings(integrator, &scene, options.max_substeps)?;
             let start = Instant::now();
             let outcome = run(scene, state, settings, options.frames);
             let wall_time_s = start.elapsed().as_secs_f64();
@@ -187,8 +187,9 @@ fn run(scene: Scene<3>, state: State<3>, settings: Settings, frames: usize) -> H
     }
 }
 
-/// E_g = M |g| L (J): total mass, gravity, diagonal of the bounding box of `positions`.
-fn energy_scale(scene: &Scene<3>, positions: &[Vector3<f64>]) -> f64 {
+/// E_g = M |g| L (J): total mass, gravity, diagonal of the bounding box of `positions` — the
+/// scene's own energy scale, against which energy drift is judged.
+pub fn energy_scale(scene: &Scene<3>, positions: &[Vector3<f64>]) -> f64 {
     let (mut min, mut max) = (positions[0], positions[0]);
     for p in positions {
         min = min.inf(p);
@@ -198,7 +199,17 @@ fn energy_scale(scene: &Scene<3>, positions: &[Vector3<f64>]) -> f64 {
     scene.mesh().total_mass() * g * (max - min).norm()
 }
 
-fn settings(name: &str, scene: &Scene<3>, max_substeps: usize) -> Result<Settings, BenchError> {
+/// The settings the hard cases run `name` (one of [`HARD_INTEGRATORS`]) with on `scene`: explicit
+/// methods with the substeps their safe stability bound needs, at most `max_substeps`; Newton with
+/// 200 iterations; the others with their defaults.
+///
+/// # Errors
+/// [`BenchError::Scene`] for an unknown integrator name.
+pub fn hard_case_settings(
+    name: &str,
+    scene: &Scene<3>,
+    max_substeps: usize,
+) -> Result<Settings, BenchError> {
     let explicit = |integrator| {
         let bound = stability_bound(scene);
         let (safe, _) = bound.for_integrator(integrator, scene.time_step());
@@ -257,8 +268,12 @@ impl Rng {
     }
 }
 
-/// The hard case `name` on cloth-`n`.
-fn case(name: &str, n: usize) -> Result<(Scene<3>, State<3>), BenchError> {
+/// The hard case `name` (one of [`HARD_CASES`]) on cloth-`n`: the scene and its initial state, as
+/// the module documentation describes them.
+///
+/// # Errors
+/// [`BenchError::Scene`] for an unknown case or a scene that cannot be built.
+pub fn hard_case(name: &str, n: usize) -> Result<(Scene<3>, State<3>), BenchError> {
     let scene_error = |e: SimError| BenchError::Scene(format!("hard case {name:?}: {e}"));
     let cloth = |stiff| -> Result<(Scene<3>, State<3>), BenchError> {
         let setup = scenes::cloth(n, stiff).map_err(scene_error)?;

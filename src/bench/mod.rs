@@ -44,7 +44,8 @@ use std::path::PathBuf;
 
 pub use cli::{run_command, BenchArgs};
 pub use hard::{
-    hard_cases, HardCaseOptions, HardOutcome, HardResult, HARD_CASES, HARD_INTEGRATORS,
+    energy_scale, hard_case, hard_case_settings, hard_cases, HardCaseOptions, HardOutcome,
+    HardResult, HARD_CASES, HARD_INTEGRATORS,
 };
 pub use measure::{ErrorMeter, Measures};
 pub use output::{

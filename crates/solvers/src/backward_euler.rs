@@ -31,6 +31,8 @@ pub struct BackwardEulerStep<const D: usize> {
     masses: Vec<f64>,
     springs: Vec<Spring>,
     shift: Vec<f64>,
+    /// The largest number of springs at one vertex (bounds the terms of a gradient entry).
+    max_degree: usize,
     definiteness: Definiteness,
     h: f64,
     /// Inertial target per vertex.
@@ -69,6 +71,15 @@ impl<const D: usize> BackwardEulerStep<D> {
                 .iter()
                 .flat_map(|&v| [masses[v as usize]; D])
                 .collect(),
+            max_degree: {
+                let mut degree = vec![0usize; n];
+                for spring in springs {
+                    let (i, j) = spring.ends();
+                    degree[i] += 1;
+                    degree[j] += 1;
+                }
+                degree.into_iter().max().unwrap_or(0)
+            },
             definiteness: Definiteness::Exact,
             h,
             y: vec![SVector::zeros(); n],
@@ -277,12 +288,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     fn gradient_round_off(&mut self, xf: &[f64]) -> f64 {
         self.expand(xf);
         let h2 = self.h * self.h;
-        // Per vertex: Σ |f_s| (into `force`, reused) and the degree (into `trial_positions[v][0]`
-        // is not used: count in a local pass instead).
+        // Per vertex: Σ |f_s|, into `force` (reused).
         for f in self.force.iter_mut() {
             *f = SVector::zeros();
         }
-        let mut degree = vec![0usize; self.x.len()];
         for (s, spring) in self.springs.iter().enumerate() {
             let (i, j) = spring.ends();
             let mut f = hooke_assembly::spring::force(
@@ -300,10 +309,8 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             }
             self.force[i] += f;
             self.force[j] += f;
-            degree[i] += 1;
-            degree[j] += 1;
         }
-        let terms = degree.iter().max().copied().unwrap_or(0) as f64 + 2.0;
+        let terms = self.max_degree as f64 + 2.0;
         let sum: f64 = self
             .free
             .free_vertices()
