@@ -14,7 +14,9 @@
 //! (springs) that is the spring part. [`HessianPattern::add_vertex_diagonal`] adds the viscous and
 //! wind terms and [`HessianPattern::add_dashpot_into`] the dashpot's, each only when the scene has
 //! them. The symbolic pattern is built once per scene and the values are refilled in place every
-//! step. How each term of a scene enters:
+//! step, as are the inverted diagonal blocks ([`BlockJacobi::refill`]: Jacobi's splitting and CG's
+//! preconditioner); a step allocates only the linear solver's report. How each term of a scene
+//! enters:
 //!
 //! - springs: f(x) on the right-hand side; their exact Hessian (or the clamped one, see
 //!   [`LinearizedParams::definiteness`]), scaled by β h², in the matrix;
@@ -87,6 +89,9 @@ pub(crate) struct Linearized<const D: usize> {
     boundary: Vec<u32>,
     /// Σ c_wind (N·s/m) over the wind terms.
     wind_coefficient: f64,
+    /// The inverted diagonal blocks of the matrix, refilled in place every solve: Jacobi's
+    /// splitting and CG's preconditioner.
+    preconditioner: BlockJacobi<D>,
     cg: ConjugateGradient,
     jacobi: Jacobi,
 }
@@ -161,6 +166,7 @@ impl<const D: usize> Linearized<D> {
             pin_velocity: vec![SVector::zeros(); n],
             boundary,
             wind_coefficient,
+            preconditioner: BlockJacobi::identity(free.free_count()),
             cg: ConjugateGradient::new(CgParams {
                 tolerance: params.tolerance,
                 max_iterations: params.max_iterations,
@@ -329,16 +335,16 @@ impl<const D: usize> Linearized<D> {
         let slots = &self.diagonal_slots;
         let blocks = (0..self.free.free_count())
             .map(|f| SMatrix::<f64, D, D>::from_fn(|a, b| values[slots[D * D * f + a + D * b]]));
-        let mut preconditioner = BlockJacobi::<D>::from_blocks(blocks)?;
+        self.preconditioner.refill(blocks)?;
         let a = Symmetric(self.pattern.matrix(values));
         match self.params.solver {
             LinearSolver::ConjugateGradient => {
                 self.cg
-                    .solve(&a, &mut preconditioner, &self.rhs, &mut self.unknowns)
+                    .solve(&a, &mut self.preconditioner, &self.rhs, &mut self.unknowns)
             }
             LinearSolver::Jacobi => {
                 self.jacobi
-                    .solve(&a, &preconditioner, &self.rhs, &mut self.unknowns)
+                    .solve(&a, &self.preconditioner, &self.rhs, &mut self.unknowns)
             }
         }
     }

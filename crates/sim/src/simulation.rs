@@ -39,7 +39,9 @@ pub struct StepReport {
     pub clamped_hessian: bool,
 }
 
-/// A scene being simulated. Buffers are allocated once in [`Simulation::new`]; steps do not allocate.
+/// A scene being simulated. Buffers are allocated once in [`Simulation::new`]; a step allocates
+/// only its solver's report (once per implicit step, whatever the iterations; nothing for the
+/// explicit integrators), which `crates/sim/tests/allocations.rs` checks.
 #[derive(Debug)]
 pub struct Simulation<const D: usize> {
     scene: Scene<D>,

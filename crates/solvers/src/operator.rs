@@ -161,13 +161,47 @@ impl<const B: usize> BlockJacobi<B> {
         let inverses = blocks
             .into_iter()
             .enumerate()
-            .map(|(block, m)| {
-                m.try_inverse()
-                    .filter(|inv| inv.iter().all(|c| c.is_finite()))
-                    .ok_or(SolveError::SingularBlock { block })
-            })
+            .map(|(block, m)| invert(block, m))
             .collect::<Result<_, _>>()?;
         Ok(BlockJacobi { inverses })
+    }
+
+    /// `count` identity blocks: a preconditioner of the right size that does nothing yet, to be
+    /// filled by [`BlockJacobi::refill`] before each solve (allocates once, here).
+    pub fn identity(count: usize) -> Self {
+        BlockJacobi {
+            inverses: vec![SMatrix::identity(); count],
+        }
+    }
+
+    /// Invert new diagonal blocks into the existing storage: the same number of blocks, new values
+    /// (a matrix refilled on a fixed pattern, a new step). No allocation.
+    ///
+    /// # Errors
+    /// [`SolveError::SingularBlock`] naming the first block that cannot be inverted. The blocks
+    /// before it then hold the new inverses and the others the old ones: refill again before
+    /// applying the preconditioner.
+    ///
+    /// # Panics
+    /// If `blocks` yields another number of blocks than [`BlockJacobi::block_count`].
+    #[track_caller]
+    pub fn refill(
+        &mut self,
+        blocks: impl IntoIterator<Item = SMatrix<f64, B, B>>,
+    ) -> Result<(), SolveError> {
+        let count = self.inverses.len();
+        let mut blocks = blocks.into_iter();
+        for (block, inverse) in self.inverses.iter_mut().enumerate() {
+            let m = blocks
+                .next()
+                .unwrap_or_else(|| panic!("BlockJacobi::refill: {block} blocks given for {count}"));
+            *inverse = invert(block, m)?;
+        }
+        assert!(
+            blocks.next().is_none(),
+            "BlockJacobi::refill: more than {count} blocks given"
+        );
+        Ok(())
     }
 
     /// The diagonal blocks of a dense matrix (tests and small problems).
@@ -193,10 +227,25 @@ impl<const B: usize> BlockJacobi<B> {
         &self.inverses
     }
 
+    /// The number of blocks.
+    pub fn block_count(&self) -> usize {
+        self.inverses.len()
+    }
+
     /// The dimension B × (number of blocks).
     pub fn dim(&self) -> usize {
         B * self.inverses.len()
     }
+}
+
+/// The inverse of diagonal block number `block`, if it exists and is finite.
+fn invert<const B: usize>(
+    block: usize,
+    m: SMatrix<f64, B, B>,
+) -> Result<SMatrix<f64, B, B>, SolveError> {
+    m.try_inverse()
+        .filter(|inv| inv.iter().all(|c| c.is_finite()))
+        .ok_or(SolveError::SingularBlock { block })
 }
 
 impl<const B: usize> Preconditioner for BlockJacobi<B> {

@@ -152,14 +152,14 @@ fn solvers_do_not_allocate_per_iteration() {
         "CG: {few} allocations in 2 iterations, {many} in 20"
     );
 
-    let diagonal = BlockJacobi::<3>::from_blocks(diagonal.iter().copied()).unwrap();
+    let inverses = BlockJacobi::<3>::from_blocks(diagonal.iter().copied()).unwrap();
     let mut jacobi = Jacobi::new(JacobiParams::default());
     let mut run = |iterations: usize| {
         jacobi.params.max_iterations = iterations;
         jacobi.params.tolerance = 0.0;
         let mut x = vec![0.0; dim];
         allocations(|| {
-            let _ = jacobi.solve(&operator, &diagonal, &b, &mut x);
+            let _ = jacobi.solve(&operator, &inverses, &b, &mut x);
         })
     };
     run(3);
@@ -167,5 +167,58 @@ fn solvers_do_not_allocate_per_iteration() {
     assert_eq!(
         few, many,
         "Jacobi: {few} allocations in 2 iterations, {many} in 20"
+    );
+
+    // Across steps: the diagonal blocks are refilled in place with new values (a new matrix on the
+    // same pattern, as the linearised integrator does every step). The refill allocates nothing, so
+    // 40 steps of refill + solve allocate 40 times what one solve does (its report), however many
+    // iterations each runs.
+    let mut diagonal_blocks = BlockJacobi::<3>::identity(blocks);
+    let mut block_values = diagonal.clone();
+    let mut refill = |step: usize| {
+        let scale = 1.0 + 0.01 * step as f64;
+        for (value, block) in block_values.iter_mut().zip(&diagonal) {
+            *value = block * scale;
+        }
+        allocations(|| {
+            diagonal_blocks
+                .refill(block_values.iter().copied())
+                .unwrap()
+        })
+    };
+    for step in 0..40 {
+        let count = refill(step);
+        assert_eq!(count, 0, "BlockJacobi::refill allocated {count} times");
+    }
+    let mut steps = |count: usize, iterations: usize| {
+        jacobi.params.max_iterations = iterations;
+        jacobi.params.tolerance = 0.0;
+        let mut x = vec![0.0; dim];
+        let mut block_values = diagonal.clone();
+        allocations(|| {
+            for step in 0..count {
+                let scale = 1.0 + 0.01 * step as f64;
+                for (value, block) in block_values.iter_mut().zip(&diagonal) {
+                    *value = block * scale;
+                }
+                diagonal_blocks
+                    .refill(block_values.iter().copied())
+                    .unwrap();
+                let _ = jacobi.solve(&operator, &diagonal_blocks, &b, &mut x);
+            }
+        })
+    };
+    steps(2, 3);
+    let (two, forty) = (steps(2, 2), steps(40, 20));
+    assert_eq!(
+        20 * two,
+        forty,
+        "Jacobi with refilled blocks: {two} allocations in 2 steps of 2 iterations, {forty} in 40 \
+         steps of 20"
+    );
+    assert_eq!(
+        two,
+        2 * few,
+        "Jacobi with refilled blocks: {two} allocations in 2 steps, {few} in one solve"
     );
 }

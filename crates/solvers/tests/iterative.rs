@@ -170,6 +170,56 @@ fn a_singular_block_is_named() {
 }
 
 #[test]
+fn refilled_blocks_equal_freshly_built_ones() {
+    // Two different matrices on the same block structure: refilling the first one's inverses with
+    // the second's blocks gives exactly (bit for bit: the same inversion) a fresh build.
+    let first = DMatrix::from_fn(9, 9, |i, j| if i == j { 5.0 } else { 0.5 });
+    let second = DMatrix::from_fn(9, 9, |i, j| {
+        if i == j {
+            3.0 + i as f64
+        } else {
+            0.25 * ((i + 2 * j) % 5) as f64
+        }
+    });
+    let mut blocks = BlockJacobi::<3>::identity(3);
+    assert_eq!(blocks.dim(), 9);
+    assert_eq!(blocks.block_count(), 3);
+    let block = |a: &DMatrix<f64>, k: usize| a.fixed_view::<3, 3>(3 * k, 3 * k).into_owned();
+    blocks.refill((0..3).map(|k| block(&first, k))).unwrap();
+    assert_eq!(blocks, BlockJacobi::<3>::from_dense(&first).unwrap());
+    blocks.refill((0..3).map(|k| block(&second, k))).unwrap();
+    assert_eq!(blocks, BlockJacobi::<3>::from_dense(&second).unwrap());
+    // Each inverse times its block is the identity, to round-off of entries O(10).
+    for (k, inverse) in blocks.inverses().iter().enumerate() {
+        let error = (inverse * block(&second, k) - nalgebra::Matrix3::identity()).amax();
+        assert!(error < 1e-14, "block {k}: |A⁻¹A − I| = {error:e}");
+    }
+    // A singular block is named, as by `from_blocks`.
+    let mut singular = second.clone();
+    singular[(7, 7)] = 0.0;
+    singular[(7, 6)] = 0.0;
+    singular[(7, 8)] = 0.0;
+    assert_eq!(
+        blocks.refill((0..3).map(|k| block(&singular, k))),
+        Err(SolveError::SingularBlock { block: 2 })
+    );
+}
+
+#[test]
+#[should_panic(expected = "2 blocks given for 3")]
+fn refilling_with_too_few_blocks_is_a_contract_violation() {
+    let mut blocks = BlockJacobi::<3>::identity(3);
+    let _ = blocks.refill(std::iter::repeat_n(nalgebra::Matrix3::identity(), 2));
+}
+
+#[test]
+#[should_panic(expected = "more than 3 blocks given")]
+fn refilling_with_too_many_blocks_is_a_contract_violation() {
+    let mut blocks = BlockJacobi::<3>::identity(3);
+    let _ = blocks.refill(std::iter::repeat_n(nalgebra::Matrix3::identity(), 4));
+}
+
+#[test]
 fn solving_again_reuses_the_workspace_and_gives_the_same_bits() {
     let a = DMatrix::from_fn(9, 9, |i, j| {
         if i == j {
