@@ -11,7 +11,9 @@ use hooke::mesh::io::{save_obj, save_vtk, Frame};
 use hooke::mesh::MeshError;
 use hooke::sim::file::{load_scene, FrameFormat, SceneFileError};
 use hooke::sim::scenes::{self, AnySetup, Setup};
-use hooke::sim::{Integrator, LinearSolver, SimError, Simulation, SolverOptions};
+use hooke::sim::{
+    parse_energy_limit, Integrator, LinearSolver, SimError, Simulation, SolverOptions,
+};
 use hooke::solvers::StopReason;
 use nalgebra::SVector;
 
@@ -83,6 +85,13 @@ struct RunArgs {
     /// Run an explicit integrator even above its stability bound.
     #[arg(long)]
     force: bool,
+    /// Energy watchdog: stop with an error when the total energy rises above
+    /// E₀ + FACTOR·(|E₀| + M|g|L) (E₀ the initial energy, M the total mass, L the diagonal of the
+    /// initial bounding box), a gain no scene without energy sources can make except by instability.
+    /// A factor >= 0, or `off` to disable the watchdog. Default: the scene file's, else 1. Not
+    /// checked for scenes with wind or moving pins, nor with --force.
+    #[arg(long, value_name = "FACTOR|off", allow_negative_numbers = true)]
+    energy_limit: Option<String>,
     /// Output directory.
     #[arg(long, default_value = "out")]
     out: PathBuf,
@@ -253,6 +262,14 @@ fn run_setup<const D: usize>(
         setup.settings.substeps = args.substeps;
     }
     setup.settings.allow_unstable |= args.force;
+    if let Some(text) = &args.energy_limit {
+        parse_energy_limit(text)
+            .and_then(|limit| setup.settings.set_energy_limit(limit))
+            .map_err(|e| CliError::Argument {
+                name: "energy-limit",
+                reason: e.to_string(),
+            })?;
+    }
 
     let frames_dir = args.out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|source| CliError::Io {

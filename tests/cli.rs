@@ -371,6 +371,119 @@ fn bad_solver_flags_are_clear_errors_not_panics() {
 }
 
 #[test]
+fn the_energy_limit_flag_sets_and_disables_the_watchdog() {
+    // Linearised Euler with β = 0 is symplectic Euler with one step of 1/30 s, 16 times cloth-10's
+    // explicit bound: it is unstable, and after 2 frames its energy is 40.8 J (measured) from
+    // E₀ = 0. The watchdog's scale is M |g| L = 1 kg · 9.81 m/s² · √2 m = 13.9 J, so its limit is
+    // 13.9 J at the default factor 1 (tripped), 27.7 J at 2 (tripped), 139 J at 10 (not), and
+    // `off` never stops the run: margins of 1.5× and more on every side.
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_str().unwrap();
+    let unstable = [
+        "run",
+        "cloth-10",
+        "--integrator",
+        "linearized",
+        "--beta",
+        "0",
+        "--steps",
+        "2",
+        "--out",
+        out_dir,
+        "--quiet",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = unstable.to_vec();
+        args.extend_from_slice(extra);
+        let out = hooke(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!stderr.contains("panicked"), "{extra:?} panicked: {stderr}");
+        (out.status.success(), stderr)
+    };
+    for (extra, limit) in [
+        (&[][..], "1.387e1 J"),
+        (&["--energy-limit", "2"][..], "2.775e1 J"),
+    ] {
+        let (ok, stderr) = run(extra);
+        assert!(!ok, "{extra:?}: the watchdog should stop the run");
+        assert!(
+            stderr.contains("step 2: the total energy rose") && stderr.contains(limit),
+            "{extra:?}: expected the energy error with limit {limit}: {stderr}"
+        );
+    }
+    for extra in [
+        &["--energy-limit", "10"][..],
+        &["--energy-limit", "off"][..],
+    ] {
+        let (ok, stderr) = run(extra);
+        assert!(ok, "{extra:?}: the run should finish: {stderr}");
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        let last = summary["steps"][2]["total_energy"].as_f64().unwrap();
+        assert!(
+            last > 27.7,
+            "{extra:?}: the run gained {last} J, past the default limit"
+        );
+    }
+    // The scene file's key, and the flag overriding it.
+    let scene = dir.path().join("unstable.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[mesh]
+generator = "cloth"
+n = 10
+stiffness = 1000.0
+[pins]
+vertices = [0, 9]
+[forces]
+gravity = [0.0, -9.81, 0.0]
+[integrator]
+method = "linearized"
+time_step = 0.03333333333333333
+beta = 0.0
+energy_limit = "off"
+[run]
+steps = 2
+"#,
+    )
+    .unwrap();
+    let scene = scene.to_str().unwrap();
+    let from_file = |extra: &[&str]| {
+        let mut args = vec!["run", scene, "--out", out_dir, "--quiet"];
+        args.extend_from_slice(extra);
+        let out = hooke(&args);
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (ok, stderr) = from_file(&[]);
+    assert!(ok, "energy_limit = \"off\" in the file: {stderr}");
+    let (ok, stderr) = from_file(&["--energy-limit", "1"]);
+    assert!(
+        !ok && stderr.contains("the total energy rose"),
+        "the flag overrides the file: {stderr}"
+    );
+    // Bad values are typed errors naming the flag.
+    for (value, expected) in [
+        ("--energy-limit=-1", "finite and >= 0"),
+        ("--energy-limit=nan", "finite and >= 0"),
+        ("--energy-limit=inf", "finite and >= 0"),
+        ("--energy-limit=lots", "a factor (a number >= 0) or \"off\""),
+    ] {
+        let (ok, stderr) = run(&[value]);
+        assert!(!ok, "{value} should fail");
+        assert!(
+            stderr.contains("invalid --energy-limit") && stderr.contains(expected),
+            "{value}: expected {expected:?} in {stderr}"
+        );
+    }
+}
+
+#[test]
 fn run_help_lists_every_integrator_and_solver_flag() {
     let out = hooke(&["run", "--help"]);
     assert!(out.status.success());
@@ -388,6 +501,7 @@ fn run_help_lists_every_integrator_and_solver_flag() {
         "cg",
         "--iterations",
         "--tolerance",
+        "--energy-limit",
     ] {
         assert!(
             text.contains(word),

@@ -105,7 +105,8 @@ pub enum SimError {
     #[error(
         "step {step}: the total energy rose to {energy:.3e} J from {initial:.3e} J, beyond the \
          limit {limit:.3e} J of a scene without energy sources: the {integrator} run is unstable \
-         (try a smaller step, more substeps, or backward Euler: newton, pd)"
+         (try a smaller step, more substeps, or backward Euler: newton, pd; the limit is the \
+         energy_limit setting, `--energy-limit FACTOR|off`)"
     )]
     EnergyGrowth {
         /// The step (1-based) after which it happened.

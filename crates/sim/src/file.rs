@@ -41,6 +41,7 @@
 //! time_step = 0.03333333333333333   # s, one frame
 //! # substeps = 10          # explicit methods; default: automatic, from the stability bound
 //! # allow_unstable = false # explicit methods
+//! # energy_limit = 1.0     # energy watchdog: stop when E > E₀ + factor·(|E₀| + M|g|L); "off" disables
 //! # beta = 1.0             # linearized: β in [0, 1]
 //! # linear_solver = "cg"   # linearized: "cg" or "jacobi"
 //! # iterations = 1000      # linearized: linear solver limit; newton: iteration limit; pd: iterations
@@ -66,7 +67,7 @@ use serde::Deserialize;
 use crate::contact::{Contact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
-use crate::integrator::{Integrator, LinearSolver, Settings, SolverOptions};
+use crate::integrator::{parse_energy_limit, Integrator, LinearSolver, Settings, SolverOptions};
 use crate::scene::{Keyframe, PinPath, Pins, Scene};
 use crate::scenes::{AnySetup, Setup};
 use crate::SimError;
@@ -279,6 +280,16 @@ struct IntegratorSection {
     linear_solver: Option<String>,
     iterations: Option<usize>,
     tolerance: Option<f64>,
+    energy_limit: Option<EnergyLimitValue>,
+}
+
+/// `integrator.energy_limit`: a factor, or "off".
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum EnergyLimitValue {
+    Factor(f64),
+    Word(String),
+    Flag(bool),
 }
 
 #[derive(Deserialize)]
@@ -630,6 +641,20 @@ impl Context<'_> {
             allow_unstable: i.allow_unstable,
             ..Settings::default()
         };
+        if let Some(value) = &i.energy_limit {
+            let limit = match value {
+                EnergyLimitValue::Factor(factor) => Ok(Some(*factor)),
+                EnergyLimitValue::Word(word) => parse_energy_limit(word),
+                EnergyLimitValue::Flag(flag) => Err(SimError::invalid(
+                    "energy limit",
+                    flag,
+                    "expected a factor (a number >= 0) or \"off\"",
+                )),
+            };
+            limit
+                .and_then(|limit| settings.set_energy_limit(limit))
+                .map_err(|e| self.invalid("integrator.energy_limit", e))?;
+        }
         let linear_solver = match &i.linear_solver {
             Some(name) => Some(
                 name.parse::<LinearSolver>()
@@ -765,6 +790,33 @@ tolerance = 1e-9
                 .to_string();
             assert!(err.contains("test.toml"), "{err}");
             assert!(err.contains(expected), "{section}: {err}");
+        }
+    }
+
+    #[test]
+    fn the_energy_limit_key_sets_the_watchdog_and_bad_values_name_the_key() {
+        let integrator = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";
+        let limit = |value: &str| {
+            parse(&format!("{integrator}energy_limit = {value}\n")).map(|s| s.settings.energy_limit)
+        };
+        assert_eq!(
+            parse(integrator).unwrap().settings.energy_limit,
+            Settings::default().energy_limit,
+            "absent: the default"
+        );
+        assert_eq!(limit("2.5").unwrap(), Some(2.5));
+        assert_eq!(limit("3").unwrap(), Some(3.0), "a TOML integer is a factor");
+        assert_eq!(limit("0.0").unwrap(), Some(0.0));
+        assert_eq!(limit("\"off\"").unwrap(), None);
+        assert_eq!(limit("\"0.5\"").unwrap(), Some(0.5));
+        for bad in ["-1.0", "nan", "inf", "\"sometimes\"", "true"] {
+            match limit(bad) {
+                Err(SceneFileError::Invalid { key, reason, .. }) => {
+                    assert_eq!(key, "integrator.energy_limit", "{bad}");
+                    assert!(reason.contains("energy limit"), "{bad}: {reason}");
+                }
+                other => panic!("energy_limit = {bad}: expected Invalid, got {other:?}"),
+            }
         }
     }
 

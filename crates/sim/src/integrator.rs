@@ -256,7 +256,10 @@ pub struct Settings {
     /// scene's own energy scale is an instability (explicit methods past their bound, the
     /// linearised step overshooting), not physics. Only checked for scenes without energy sources
     /// (no wind, no pins on a path), and not when [`Settings::allow_unstable`] forces the run (the
-    /// divergence checks still stop an explosion); `None` turns it off.
+    /// divergence checks still stop an explosion); `None` turns it off. Set from text by
+    /// `hooke run --energy-limit FACTOR|off` and the scene file key `integrator.energy_limit` (see
+    /// [`parse_energy_limit`]); a factor that is negative or not finite is refused by
+    /// [`Settings::set_energy_limit`] and by [`crate::Simulation::new`].
     pub energy_limit: Option<f64>,
     /// The linearised integrator's settings (default: β = 1, CG to 1e-8).
     pub linearized: LinearizedParams,
@@ -278,6 +281,40 @@ impl Default for Settings {
             newton: hooke_solvers::NewtonParams::default(),
             pd: hooke_solvers::PdParams::default(),
         }
+    }
+}
+
+/// The energy watchdog's setting ([`Settings::energy_limit`]) as `hooke run --energy-limit` and a
+/// scene file's `integrator.energy_limit` write it: a factor (a finite number ≥ 0,
+/// dimensionless), or `off` (also `none`) to turn the watchdog off.
+///
+/// # Errors
+/// [`SimError::InvalidParameter`] (name "energy limit") for anything else, including a negative,
+/// infinite or NaN factor.
+pub fn parse_energy_limit(text: &str) -> Result<Option<f64>, SimError> {
+    let text = text.trim();
+    if text.eq_ignore_ascii_case("off") || text.eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    match text.parse::<f64>() {
+        Ok(factor) => check_energy_limit(factor).map(Some),
+        Err(_) => Err(SimError::invalid(
+            "energy limit",
+            text,
+            "expected a factor (a number >= 0) or \"off\"",
+        )),
+    }
+}
+
+fn check_energy_limit(factor: f64) -> Result<f64, SimError> {
+    if factor >= 0.0 && factor.is_finite() {
+        Ok(factor)
+    } else {
+        Err(SimError::invalid(
+            "energy limit",
+            factor,
+            "the factor must be finite and >= 0 (use \"off\" to turn the watchdog off)",
+        ))
     }
 }
 
@@ -357,6 +394,20 @@ impl Settings {
         Ok(())
     }
 
+    /// Set the energy watchdog ([`Settings::energy_limit`]): `Some(factor)` (dimensionless, finite,
+    /// ≥ 0) or `None` (off).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a negative, infinite or NaN factor (the settings are then
+    /// unchanged).
+    pub fn set_energy_limit(&mut self, limit: Option<f64>) -> Result<(), SimError> {
+        if let Some(factor) = limit {
+            check_energy_limit(factor)?;
+        }
+        self.energy_limit = limit;
+        Ok(())
+    }
+
     /// The settings of the chosen integrator's solver, by name, for reports: (β, linear solver,
     /// iterations, tolerance), each `None` where the integrator has no such setting.
     pub fn solver_options(&self) -> SolverOptions {
@@ -396,6 +447,41 @@ mod tests {
         }
         assert!("rk4".parse::<Integrator>().is_err());
         assert!("gmres".parse::<LinearSolver>().is_err());
+    }
+
+    #[test]
+    fn energy_limits_parse_and_bad_ones_are_refused() {
+        for (text, expected) in [
+            ("1", Some(1.0)),
+            ("0.25", Some(0.25)),
+            ("0", Some(0.0)),
+            (" 1e3 ", Some(1e3)),
+            ("off", None),
+            ("OFF", None),
+            ("none", None),
+        ] {
+            assert_eq!(parse_energy_limit(text).unwrap(), expected, "{text:?}");
+        }
+        for text in ["-1", "NaN", "inf", "", "twice", "1 J"] {
+            match parse_energy_limit(text) {
+                Err(SimError::InvalidParameter { name, .. }) => assert_eq!(name, "energy limit"),
+                other => panic!("{text:?}: expected InvalidParameter, got {other:?}"),
+            }
+        }
+        let mut s = Settings::default();
+        assert_eq!(s.energy_limit, Some(1.0));
+        s.set_energy_limit(None).unwrap();
+        assert_eq!(s.energy_limit, None);
+        s.set_energy_limit(Some(3.0)).unwrap();
+        assert_eq!(s.energy_limit, Some(3.0));
+        for bad in [-0.5, f64::NAN, f64::INFINITY] {
+            assert!(s.set_energy_limit(Some(bad)).is_err(), "{bad}");
+            assert_eq!(
+                s.energy_limit,
+                Some(3.0),
+                "a refused value leaves the setting"
+            );
+        }
     }
 
     #[test]

@@ -41,7 +41,9 @@ pub use contact::{Contact, Shape};
 pub use damping::Damping;
 pub use error::SimError;
 pub use forces::ExternalForce;
-pub use integrator::{Integrator, LinearSolver, LinearizedParams, Settings, SolverOptions};
+pub use integrator::{
+    parse_energy_limit, Integrator, LinearSolver, LinearizedParams, Settings, SolverOptions,
+};
 pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Scene, State};
 pub use simulation::{Simulation, StepReport, MAX_AUTO_SUBSTEPS};
 pub use stability::{stability_bound, StabilityBound};

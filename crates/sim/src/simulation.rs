@@ -69,7 +69,7 @@ impl<const D: usize> Simulation<D> {
     ///
     /// # Errors
     /// - [`SimError::InvalidParameter`] if `state` does not match the mesh, holds non-finite
-    ///   values, or substeps are 0 or too many;
+    ///   values, substeps are 0 or too many, or the energy limit is negative or not finite;
     /// - [`SimError::UnstableStep`] if an explicit step is above the estimated stability bound and
     ///   `settings.allow_unstable` is false.
     pub fn new(scene: Scene<D>, state: State<D>, settings: Settings) -> Result<Self, SimError> {
@@ -154,9 +154,11 @@ impl<const D: usize> Simulation<D> {
                 .as_slice()
                 .iter()
                 .any(|f| matches!(f, crate::ExternalForce::Wind { .. }));
+        if let Some(factor) = settings.energy_limit {
+            crate::error::non_negative("energy limit", factor)?;
+        }
         let energy_limit = match settings.energy_limit {
             Some(factor) if !has_sources && !settings.allow_unstable => {
-                crate::error::non_negative("energy limit", factor)?;
                 let mut min = state.positions[0];
                 let mut max = state.positions[0];
                 for p in &state.positions {
