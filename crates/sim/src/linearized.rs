@@ -33,7 +33,8 @@
 //!   on the right-hand side;
 //! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve, before x⁺ = x + h v⁺ (the order of the
 //!   symplectic integrator, so that β = 0 is symplectic Euler exactly);
-//! - contact: a projection of x⁺ and v⁺ after the step (pinned vertices untouched);
+//! - contact: a projection of x⁺ and v⁺ after the step, for the whole mesh, done by
+//!   [`crate::Simulation`] (see [`crate::contact`]; pinned vertices untouched);
 //! - pins: removed from the unknowns; a pinned vertex moves to its prescribed position at the end
 //!   of the step with velocity (x_pin(t + h) − x)/h, and that known velocity enters the free rows'
 //!   right-hand side through the coupling blocks (β h² H_s + h c_d r̂r̂ᵀ) v_pin of the springs to it.
@@ -230,9 +231,6 @@ impl<const D: usize> Linearized<D> {
             let vel = SVector::<f64, D>::from_column_slice(&self.unknowns[D * f..D * f + D]) * drag;
             velocities[v] = vel;
             positions[v] += vel * h;
-            for contact in scene.contacts() {
-                contact.project(&mut positions[v], &mut velocities[v]);
-            }
         }
         for &v in scene.pinned() {
             let v = v as usize;

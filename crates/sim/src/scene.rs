@@ -341,6 +341,18 @@ impl<const D: usize> Scene<D> {
         &self.contacts
     }
 
+    /// Take the contacts out (no allocation), so that an implicit solver given this scene does not
+    /// project: [`crate::Simulation`] projects the whole mesh after the step instead (see
+    /// [`crate::contact`]). Put them back with [`Scene::restore_contacts`].
+    pub(crate) fn take_contacts(&mut self) -> Vec<Contact<D>> {
+        std::mem::take(&mut self.contacts)
+    }
+
+    /// Put back the contacts taken by [`Scene::take_contacts`].
+    pub(crate) fn restore_contacts(&mut self, contacts: Vec<Contact<D>>) {
+        self.contacts = contacts;
+    }
+
     /// The time step h (s) of one frame.
     pub fn time_step(&self) -> f64 {
         self.time_step

@@ -7,6 +7,7 @@ use hooke_solvers::SolveSummary;
 use nalgebra::SVector;
 use rayon::prelude::*;
 
+use crate::contact::StepProjection;
 use crate::implicit::BackwardEuler;
 use crate::integrator::{Integrator, Settings};
 use crate::linearized::Linearized;
@@ -62,6 +63,8 @@ pub struct Simulation<const D: usize> {
     next_pinned: Vec<SVector<f64, D>>,
     /// The energy watchdog's limit (J), if it applies.
     energy_limit: Option<(f64, f64)>,
+    /// Contact after an implicit step (scenes with contacts and an implicit integrator).
+    projection: Option<StepProjection<D>>,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -133,6 +136,11 @@ impl<const D: usize> Simulation<D> {
             Integrator::Linearized => Some(Linearized::new(&scene, settings.linearized)?),
             _ => None,
         };
+        let projection = if !scene.contacts().is_empty() && !settings.integrator.is_explicit() {
+            Some(StepProjection::new(&scene)?)
+        } else {
+            None
+        };
         let mut moving = Vec::new();
         for (index, group) in scene.pin_paths().iter().enumerate() {
             let start = group.path.offset(state.time);
@@ -188,6 +196,7 @@ impl<const D: usize> Simulation<D> {
             moving,
             next_pinned: vec![SVector::zeros(); n],
             energy_limit,
+            projection,
         })
     }
 
@@ -261,14 +270,22 @@ impl<const D: usize> Simulation<D> {
         if self.implicit.is_some() || self.linearized.is_some() {
             self.pinned_targets(end_time);
         }
+        // The implicit solvers step a scene without its contacts; the projection below does the
+        // contact for the whole mesh (see the `contact` module).
+        let contacts = self.scene.take_contacts();
+        let h = self.scene.time_step();
         if let Some(implicit) = &mut self.implicit {
             let state = &mut self.state;
-            solver = Some(implicit.step(
+            let outcome = implicit.step(
                 &self.scene,
                 &mut state.positions,
                 &mut state.velocities,
                 &self.next_pinned,
-            )?);
+            );
+            self.scene.restore_contacts(contacts);
+            solver = Some(outcome?);
+            // Backward Euler sets v⁺ = (x⁺ − x_n)/h · e^(−h c_drag).
+            self.project_contacts((-h * self.scene.damping().drag).exp())?;
         } else if let Some(linearized) = &mut self.linearized {
             let state = &mut self.state;
             let outcome = linearized.step(
@@ -278,10 +295,15 @@ impl<const D: usize> Simulation<D> {
                 &self.next_pinned,
                 self.steps_taken + 1,
                 self.settings.parallel,
-            )?;
+            );
+            self.scene.restore_contacts(contacts);
+            let outcome = outcome?;
             solver = Some(outcome.summary);
             clamped_hessian = outcome.clamped;
+            // The linearised step sets x⁺ = x_n + h v⁺, drag included in v⁺.
+            self.project_contacts(1.0)?;
         } else {
+            self.scene.restore_contacts(contacts);
             let h = self.scene.time_step() / self.substeps as f64;
             for _ in 0..self.substeps {
                 self.explicit_substep(h);
@@ -310,6 +332,20 @@ impl<const D: usize> Simulation<D> {
             wall_time: start.elapsed(),
             clamped_hessian,
         })
+    }
+
+    /// Contact after an implicit step (see [`StepProjection::apply`]).
+    fn project_contacts(&mut self, velocity_scale: f64) -> Result<(), SimError> {
+        if let Some(projection) = &mut self.projection {
+            projection.apply(
+                &self.scene,
+                &mut self.state.positions,
+                &mut self.state.velocities,
+                velocity_scale,
+                self.settings.parallel,
+            )?;
+        }
+        Ok(())
     }
 
     /// Positions beyond the divergence limit, or velocities that would cross it within one frame,
