@@ -79,7 +79,7 @@ impl<const D: usize> HessianPattern<D> {
         #[allow(clippy::let_unit_value)]
         let () = Self::DIMENSION_IS_1_TO_3;
         let (graph, symbolic) = block_pattern::<D>(vertex_count, springs, free);
-        let schedule = RefillSchedule::new(&graph);
+        let schedule = RefillSchedule::new::<D>(&graph);
         HessianPattern {
             graph,
             schedule,
@@ -415,21 +415,27 @@ impl<const D: usize> Refill<'_, D> {
     ) {
         let schedule = self.schedule;
         let computes = schedule.computes(columns.clone());
-        let first_compute = schedule.compute_range(columns.clone()).start;
+        let plans = schedule.plans(columns.clone());
+        let mut gathers = match (columns.start, columns.end.checked_sub(1)) {
+            (first, Some(last)) if first <= last => schedule.gathers(
+                self.graph.contribution_range(first).start..self.graph.contribution_range(last).end,
+            ),
+            _ => &[],
+        };
         // Computes done so far in this leaf; compute k writes ring slot k mod R, and R is a
         // multiple of BATCH, so a batch starting at a multiple of BATCH writes consecutive slots.
         let (mut done, mut slot) = (0, 0);
         let mut rest = values;
-        for column in columns {
-            let vertex = self.graph.free().free_vertices()[column] as usize;
+        for (column, plan) in columns.zip(plans) {
             debug_assert!(
                 schedule.computes(column..column + 1).iter().all(|&s| {
                     let (i, j) = self.springs[s as usize].ends();
+                    let vertex = plan.vertex as usize;
                     i == vertex || j == vertex
                 }),
                 "a spring at column {column} moved"
             );
-            let needed = schedule.compute_range(column..column + 1).end - first_compute;
+            let needed = plan.computes_end as usize;
             while done < needed {
                 if let Some(batch) = computes.get(done..done + BATCH) {
                     let batch: &[u32; BATCH] = batch.try_into().expect("BATCH springs");
@@ -451,40 +457,43 @@ impl<const D: usize> Refill<'_, D> {
                     slot = 0;
                 }
             }
-            let column_len = D * self.graph.column_blocks(column).len();
-            let (out, tail) = std::mem::take(&mut rest).split_at_mut(D * column_len);
+            let len = plan.len as usize;
+            let (out, tail) = std::mem::take(&mut rest).split_at_mut(D * len);
             rest = tail;
-            self.gather(column, column_len, self.masses[vertex], ring, out);
+            let (mine, others) = gathers.split_at(plan.gathers as usize);
+            gathers = others;
+            let mass = self.masses[plan.vertex as usize];
+            self.gather(mine, len, plan.diagonal as usize, mass, ring, out);
         }
     }
 
-    /// Write the values of block column `column` (`column_len` values per scalar column) from the
-    /// blocks in `ring`, adding `mass` on the diagonal.
+    /// Write the values of one block column (`len` values per scalar column, diagonal block at
+    /// `diagonal`) from the blocks in `ring` its `gathers` name, adding `mass` on the diagonal.
     #[inline(always)]
     fn gather(
         &self,
-        column: usize,
-        column_len: usize,
+        gathers: &[Gather],
+        len: usize,
+        diagonal: usize,
         mass: f64,
         ring: &[[f64; PACKED]],
         out: &mut [f64],
     ) {
-        let (graph, schedule) = (self.graph, self.schedule);
         // Σ (−h² H_s) over the springs at this vertex, in increasing spring order (packed: each
         // entry once, so the diagonal block is exactly symmetric).
         let mut sum = [0.0; PACKED];
-        for g in schedule.gathers(graph.contribution_range(column)) {
+        for g in gathers {
             let packed = &ring[g.ring as usize];
             for (acc, v) in sum.iter_mut().zip(packed).take(PACKED_LEN[D]) {
                 *acc += v;
             }
             if g.target != Gather::NO_TARGET {
-                let at = D * (g.target & !Gather::FIRST) as usize;
+                let at = (g.target & !Gather::FIRST) as usize;
                 let first = g.target & Gather::FIRST != 0;
                 // One bounds check for the D scalar columns of the block.
-                let window = &mut out[at..at + (D - 1) * column_len + D];
+                let window = &mut out[at..at + (D - 1) * len + D];
                 for b in 0..D {
-                    let dst = &mut window[b * column_len..b * column_len + D];
+                    let dst = &mut window[b * len..b * len + D];
                     if first {
                         for (a, d) in dst.iter_mut().enumerate() {
                             *d = packed[packed_index::<D>(a, b)];
@@ -497,9 +506,9 @@ impl<const D: usize> Refill<'_, D> {
                 }
             }
         }
-        let at = D * graph.diagonal_slot(column);
+        let window = &mut out[diagonal..diagonal + (D - 1) * len + D];
         for b in 0..D {
-            let dst = &mut out[b * column_len + at..][..D];
+            let dst = &mut window[b * len..b * len + D];
             for (a, d) in dst.iter_mut().enumerate() {
                 *d = -sum[packed_index::<D>(a, b)];
             }

@@ -23,8 +23,9 @@ use crate::hessian::BATCH;
 pub(crate) struct Gather {
     /// Ring slot of the block, relative to the leaf's ring.
     pub ring: u32,
-    /// The block slot within the column it adds to, with [`Gather::FIRST`] set if it is the first
-    /// (write, not add), or [`Gather::NO_TARGET`] if the other end is pinned (diagonal only).
+    /// The offset of the block within each scalar column of its block column (D × its slot), with
+    /// [`Gather::FIRST`] set if it is the first (write, not add), or [`Gather::NO_TARGET`] if the
+    /// other end is pinned (diagonal only).
     pub target: u32,
 }
 
@@ -33,6 +34,21 @@ impl Gather {
     pub const FIRST: u32 = 1 << 31;
     /// `target` of a contribution whose other end is pinned.
     pub const NO_TARGET: u32 = u32::MAX;
+}
+
+/// What a refill needs to know of one block column, in one record.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct ColumnPlan {
+    /// The computes of the column's leaf up to and including this column.
+    pub computes_end: u32,
+    /// The number of gathers (contributions) of the column.
+    pub gathers: u32,
+    /// Values per scalar column: D × the number of blocks.
+    pub len: u32,
+    /// The offset of the diagonal block within each scalar column (D × its slot).
+    pub diagonal: u32,
+    /// The column's vertex (full index, for its mass).
+    pub vertex: u32,
 }
 
 /// The compute and gather order of a refill over a [`BlockGraph`].
@@ -49,12 +65,18 @@ pub(crate) struct RefillSchedule {
     compute_offsets: Vec<usize>,
     /// Spring indices, in compute order.
     computes: Vec<u32>,
+    /// One per column.
+    plans: Vec<ColumnPlan>,
     gathers: Vec<Gather>,
 }
 
 impl RefillSchedule {
-    /// O(s) time for s springs, plus a temporary index per spring.
-    pub fn new(graph: &BlockGraph) -> Self {
+    /// The schedule for blocks of size D×D. O(s) time for s springs, plus a temporary index per
+    /// spring.
+    ///
+    /// # Panics
+    /// If a column has 2³¹ values or more per scalar column (u32 offsets with a flag bit).
+    pub fn new<const D: usize>(graph: &BlockGraph) -> Self {
         let columns = graph.columns();
         let leaves = graph.leaves();
         let mut ring_offsets = Vec::with_capacity(leaves.len());
@@ -69,6 +91,8 @@ impl RefillSchedule {
         // computes of its leaf up to and including it.
         let mut last_reader = Vec::new();
         let mut computed_by = vec![0usize; columns];
+        let mut plans = Vec::with_capacity(columns);
+        let free_vertices = graph.free().free_vertices();
         #[allow(clippy::needless_range_loop)] // columns index three arrays and the graph
         for leaf in leaves.windows(2) {
             let (first_column, end_column) = (leaf[0], leaf[1]);
@@ -106,11 +130,20 @@ impl RefillSchedule {
                     gather.ring = k as u32;
                     gather.target = match index {
                         None => Gather::NO_TARGET,
-                        Some(_) => other | if c.first { Gather::FIRST } else { 0 },
+                        Some(_) => (D as u32 * other) | if c.first { Gather::FIRST } else { 0 },
                     };
                 }
                 compute_offsets.push(computes.len());
                 computed_by[column] = computes.len() - leaf_start;
+                let len = D * graph.column_blocks(column).len();
+                assert!(len < Gather::FIRST as usize, "column {column} too long");
+                plans.push(ColumnPlan {
+                    computes_end: u32::try_from(computed_by[column]).expect("u32 computes"),
+                    gathers: contributions.len() as u32,
+                    len: len as u32,
+                    diagonal: (D * graph.diagonal_slot(column)) as u32,
+                    vertex: free_vertices[column],
+                });
             }
             // Slot k is overwritten by compute k + R: it must not happen before k's last reader,
             // even when computes run up to BATCH − 1 ahead of the column that needs them. R is a
@@ -135,8 +168,15 @@ impl RefillSchedule {
             ring_offsets,
             compute_offsets,
             computes,
+            plans,
             gathers,
         }
+    }
+
+    /// The plans of the columns `columns`.
+    #[inline]
+    pub fn plans(&self, columns: Range<usize>) -> &[ColumnPlan] {
+        &self.plans[columns]
     }
 
     /// Ring slots per leaf (one entry per leaf and one more).
