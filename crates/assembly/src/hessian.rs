@@ -527,51 +527,73 @@ impl<const D: usize> Refill<'_, D> {
         indices: &[u32; N],
         out: &mut [[f64; PACKED]; N],
     ) {
+        // Structure of arrays, one operation over the N lanes at a time, so that each vectorises.
         let mut r = [[0.0; N]; D];
-        let mut length_squared = [0.0; N];
         let mut stiffness = [0.0; N];
         let mut rest_length = [0.0; N];
         for n in 0..N {
             let s = &self.springs[indices[n] as usize];
             let (i, j) = s.ends();
-            let d = self.positions[i] - self.positions[j];
-            length_squared[n] = d.norm_squared();
+            let (xi, xj) = (&self.positions[i], &self.positions[j]);
             for a in 0..D {
-                r[a][n] = d[a];
+                r[a][n] = xi[a] - xj[a];
             }
             stiffness[n] = s.stiffness;
             rest_length[n] = s.rest_length;
         }
-        let (mut p, mut q) = ([0.0; N], [0.0; N]);
-        let mut unit = [[0.0; N]; D];
-        // Whether a lane may need the stand-in: some |r|² not positive, or something not finite
-        // (a finite sum of non-negative terms that overflows only makes the test cautious).
-        let (mut smallest, mut total) = (f64::INFINITY, 0.0);
+        // |r|² summed in nalgebra's order (0 + x² + y² + z², and 0 + x² = x²).
+        let mut length_squared = [0.0; N];
+        for (a, ra) in r.iter().enumerate() {
+            for n in 0..N {
+                length_squared[n] = if a == 0 {
+                    ra[n] * ra[n]
+                } else {
+                    length_squared[n] + ra[n] * ra[n]
+                };
+            }
+        }
+        let mut inverse_length = [0.0; N];
         for n in 0..N {
-            let l2 = length_squared[n];
-            let inverse_length = 1.0 / l2.sqrt();
-            let ratio = rest_length[n] * inverse_length;
+            inverse_length[n] = 1.0 / length_squared[n].sqrt();
+        }
+        let (mut p, mut q) = ([0.0; N], [0.0; N]);
+        // Whether every lane is on the fast path: |r|² positive, and |r|², along and across finite
+        // (a finite sum of non-negative terms that overflows only makes the test cautious).
+        let mut fast = true;
+        for n in 0..N {
+            let ratio = rest_length[n] * inverse_length[n];
             let clamp = CLAMPED && ratio > 1.0;
             let across = if clamp { 0.0 } else { 1.0 - ratio };
             let along = if clamp { 1.0 } else { ratio };
             let (along, across) = (stiffness[n] * along, stiffness[n] * across);
-            smallest = l2.min(smallest);
-            total += l2 + along.abs() + across.abs();
+            let l2 = length_squared[n];
+            fast &= (l2 > 0.0) & (l2 + along.abs() + across.abs() < f64::INFINITY);
             p[n] = -self.h2 * along;
             q[n] = -self.h2 * across;
-            for a in 0..D {
-                unit[a][n] = r[a][n] * inverse_length;
+        }
+        let mut unit = [[0.0; N]; D];
+        for a in 0..D {
+            for n in 0..N {
+                unit[a][n] = r[a][n] * inverse_length[n];
+            }
+        }
+        let mut packed = [[0.0; N]; PACKED];
+        for b in 0..D {
+            for a in 0..=b {
+                for n in 0..N {
+                    packed[packed_index::<D>(a, b)][n] = p[n] * (unit[a][n] * unit[b][n]);
+                }
+            }
+            for n in 0..N {
+                packed[packed_index::<D>(b, b)][n] += q[n];
             }
         }
         for n in 0..N {
-            for b in 0..D {
-                for a in 0..=b {
-                    out[n][packed_index::<D>(a, b)] = p[n] * (unit[a][n] * unit[b][n]);
-                }
-                out[n][packed_index::<D>(b, b)] += q[n];
+            for k in 0..PACKED_LEN[D] {
+                out[n][k] = packed[k][n];
             }
         }
-        if !(smallest > 0.0 && total < f64::INFINITY) {
+        if !fast {
             let definiteness = if CLAMPED {
                 Definiteness::Clamped
             } else {
