@@ -557,20 +557,24 @@ impl<const D: usize> Refill<'_, D> {
             inverse_length[n] = 1.0 / length_squared[n].sqrt();
         }
         let (mut p, mut q) = ([0.0; N], [0.0; N]);
-        // Whether every lane is on the fast path: |r|² positive, and |r|², along and across finite
-        // (a finite sum of non-negative terms that overflows only makes the test cautious).
-        let mut fast = true;
+        // Per lane, |r|² + 1/|r| + along + across: finite (in absolute value) only if all four
+        // are, and 1/|r| is finite only if |r|² > 0, so a finite check means the lane is on the
+        // fast path of `HessianTerms` (|r|² positive and finite, along and across finite); a finite
+        // sum that overflows only makes the test cautious.
+        let mut check = [0.0; N];
         for n in 0..N {
             let ratio = rest_length[n] * inverse_length[n];
             let clamp = CLAMPED && ratio > 1.0;
             let across = if clamp { 0.0 } else { 1.0 - ratio };
             let along = if clamp { 1.0 } else { ratio };
             let (along, across) = (stiffness[n] * along, stiffness[n] * across);
-            let l2 = length_squared[n];
-            fast &= (l2 > 0.0) & (l2 + along.abs() + across.abs() < f64::INFINITY);
+            check[n] = length_squared[n] + inverse_length[n] + along + across;
             p[n] = -self.h2 * along;
             q[n] = -self.h2 * across;
         }
+        let fast = check
+            .iter()
+            .fold(true, |fast, c| fast & (c.abs() < f64::INFINITY));
         let mut unit = [[0.0; N]; D];
         for a in 0..D {
             for n in 0..N {
@@ -1440,6 +1444,53 @@ mod tests {
         };
         // Integer-valued: the sums of blocks of parallel springs are the block of their stiffness sum.
         assert_eq!(build(&springs), build(&merged));
+    }
+
+    #[test]
+    fn scheduled_refill_equals_the_plain_refill_on_degenerate_springs() {
+        // Springs where `HessianTerms` takes its stand-in or is at the edge of it, mixed in batches
+        // with ordinary springs: the batched fast-path test must send each such batch to the
+        // one-by-one path (or compute the same bits), in both variants.
+        let mesh = cloth(6, 100.0).unwrap();
+        let l = mesh.springs()[0].rest_length;
+        let mut x = mesh.positions().to_vec();
+        x[1] = x[0]; // zero length (1/|r| infinite; clamped: along and across finite)
+        x[8] = x[7] + Vector3::new(1e-300, 0.0, 0.0); // |r|² underflows to 0
+        x[9] = x[10] + Vector3::new(3e-160, 0.0, 0.0); // |r|² subnormal but positive
+        x[20] += Vector3::new(1e200, 0.0, 0.0); // |r|² overflows
+        x[27] += Vector3::new(1e3 * l, -2e3 * l, 0.0); // very long
+        let mut springs = mesh.springs().to_vec();
+        springs[5].stiffness = 1e308; // along or across overflows
+        springs[6].rest_length = 0.0;
+        springs[7].stiffness = f64::INFINITY;
+        springs[11].rest_length = 1e300;
+        let pattern = HessianPattern::<3>::new(mesh.vertex_count(), &springs, None);
+        let mut workspace = pattern.workspace();
+        for definiteness in [Definiteness::Exact, Definiteness::Clamped] {
+            let mut values = vec![f64::NAN; pattern.nnz()];
+            let params = HessianParams {
+                definiteness,
+                parallel: false,
+            };
+            pattern.assemble_into(
+                &springs,
+                &x,
+                mesh.masses(),
+                0.01,
+                params,
+                &mut workspace,
+                &mut values,
+            );
+            let reference =
+                reference_values(&pattern, &springs, &x, mesh.masses(), 0.01, definiteness);
+            assert!(
+                values
+                    .iter()
+                    .zip(&reference)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{definiteness:?}: the refill differs from the plain definition"
+            );
+        }
     }
 
     #[test]
