@@ -463,16 +463,20 @@ impl<const D: usize> Refill<'_, D> {
             let (mine, others) = gathers.split_at(plan.gathers as usize);
             gathers = others;
             let mass = self.masses[plan.vertex as usize];
-            self.gather(mine, len, plan.diagonal as usize, mass, ring, out);
+            let diagonal = plan.diagonal as usize;
+            self.gather(mine, plan.simple, len, diagonal, mass, ring, out);
         }
     }
 
     /// Write the values of one block column (`len` values per scalar column, diagonal block at
     /// `diagonal`) from the blocks in `ring` its `gathers` name, adding `mass` on the diagonal.
+    /// `simple`: every gather has a target and is the first to write it.
+    #[allow(clippy::too_many_arguments)] // the column's plan, unpacked, and the buffers
     #[inline(always)]
     fn gather(
         &self,
         gathers: &[Gather],
+        simple: bool,
         len: usize,
         diagonal: usize,
         mass: f64,
@@ -482,25 +486,43 @@ impl<const D: usize> Refill<'_, D> {
         // Σ (−h² H_s) over the springs at this vertex, in increasing spring order (packed: each
         // entry once, so the diagonal block is exactly symmetric).
         let mut sum = [0.0; PACKED];
-        for g in gathers {
-            let packed = &ring[g.ring as usize];
-            for (acc, v) in sum.iter_mut().zip(packed).take(PACKED_LEN[D]) {
-                *acc += v;
-            }
-            if g.target != Gather::NO_TARGET {
+        if simple {
+            // Every gather has a target and is the first to it (the common case): no tests.
+            for g in gathers {
+                let packed = &ring[g.ring as usize];
+                for (acc, v) in sum.iter_mut().zip(packed).take(PACKED_LEN[D]) {
+                    *acc += v;
+                }
                 let at = (g.target & !Gather::FIRST) as usize;
-                let first = g.target & Gather::FIRST != 0;
                 // One bounds check for the D scalar columns of the block.
                 let window = &mut out[at..at + (D - 1) * len + D];
                 for b in 0..D {
                     let dst = &mut window[b * len..b * len + D];
-                    if first {
-                        for (a, d) in dst.iter_mut().enumerate() {
-                            *d = packed[packed_index::<D>(a, b)];
-                        }
-                    } else {
-                        for (a, d) in dst.iter_mut().enumerate() {
-                            *d += packed[packed_index::<D>(a, b)];
+                    for (a, d) in dst.iter_mut().enumerate() {
+                        *d = packed[packed_index::<D>(a, b)];
+                    }
+                }
+            }
+        } else {
+            for g in gathers {
+                let packed = &ring[g.ring as usize];
+                for (acc, v) in sum.iter_mut().zip(packed).take(PACKED_LEN[D]) {
+                    *acc += v;
+                }
+                if g.target != Gather::NO_TARGET {
+                    let at = (g.target & !Gather::FIRST) as usize;
+                    let first = g.target & Gather::FIRST != 0;
+                    let window = &mut out[at..at + (D - 1) * len + D];
+                    for b in 0..D {
+                        let dst = &mut window[b * len..b * len + D];
+                        if first {
+                            for (a, d) in dst.iter_mut().enumerate() {
+                                *d = packed[packed_index::<D>(a, b)];
+                            }
+                        } else {
+                            for (a, d) in dst.iter_mut().enumerate() {
+                                *d += packed[packed_index::<D>(a, b)];
+                            }
                         }
                     }
                 }

@@ -49,6 +49,9 @@ pub(crate) struct ColumnPlan {
     pub diagonal: u32,
     /// The column's vertex (full index, for its mass).
     pub vertex: u32,
+    /// Whether every gather of the column has a target and is the first to write it (no pinned
+    /// other end, no parallel springs).
+    pub simple: bool,
 }
 
 /// The compute and gather order of a refill over a [`BlockGraph`].
@@ -143,6 +146,9 @@ impl RefillSchedule {
                     len: len as u32,
                     diagonal: (D * graph.diagonal_slot(column)) as u32,
                     vertex: free_vertices[column],
+                    simple: contributions
+                        .iter()
+                        .all(|c| c.slot != Contribution::PINNED_OTHER && c.first),
                 });
             }
             // Slot k is overwritten by compute k + R: it must not happen before k's last reader,
