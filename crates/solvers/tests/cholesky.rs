@@ -161,6 +161,40 @@ fn bad_matrices_are_reported() {
         llt.factorize(other.as_ref()),
         Err(CholeskyError::PatternMismatch { .. })
     ));
+    // The same size and number of entries, one symmetric pair moved elsewhere: the row indices
+    // are checked, not only their count.
+    let present = (0..n)
+        .flat_map(|c| (c + 1..n).map(move |r| (r, c)))
+        .find(|&(r, c)| dense[(r, c)] != 0.0)
+        .unwrap();
+    let absent = (0..n)
+        .flat_map(|c| (c + 1..n).map(move |r| (r, c)))
+        .find(|&(r, c)| dense[(r, c)] == 0.0)
+        .unwrap();
+    let mut moved = Vec::new();
+    for c in 0..n {
+        for r in 0..n {
+            let (r2, c2) = if (r, c) == present {
+                absent
+            } else if (c, r) == present {
+                (absent.1, absent.0)
+            } else {
+                (r, c)
+            };
+            if dense[(r, c)] != 0.0 {
+                moved.push(Triplet::new(r2, c2, dense[(r, c)]));
+            }
+        }
+    }
+    let moved = SparseColMat::try_new_from_triplets(n, n, &moved).unwrap();
+    assert_eq!(moved.compute_nnz(), a.compute_nnz());
+    let expected_column = present.1.min(absent.1);
+    match llt.factorize(moved.as_ref()) {
+        Err(CholeskyError::PatternMismatch { column, .. }) => {
+            assert_eq!(column, Some(expected_column))
+        }
+        other => panic!("expected a pattern mismatch, got {other:?}"),
+    }
     // And it recovers on a good matrix.
     llt.factorize(a.as_ref()).unwrap();
 }
