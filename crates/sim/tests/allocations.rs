@@ -1,10 +1,13 @@
 //! The time loop does not allocate its buffers per step: a step of an implicit integrator (linearised
 //! with block Jacobi or CG, Newton, projective dynamics) allocates only its solver's report (the
 //! residual history, reserved once per solve so that the iterations never allocate), whatever the
-//! step; an explicit step allocates nothing. Measured with a counting global allocator; one test
-//! function, so no other test allocates concurrently.
+//! step; an explicit step allocates nothing. Measured with a counting global allocator that counts
+//! only the allocations of the thread being measured: the steps run serially (`parallel: false`),
+//! and the process's other threads (the test harness's) allocate on their own schedule, which made
+//! a process-wide count fail about one run in three (4 foreign allocations in a step).
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hooke_mesh::generators;
@@ -15,16 +18,26 @@ struct Counting;
 
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
+thread_local! {
+    /// Whether this thread's allocations are counted (const-initialised: reading it never
+    /// allocates, so the allocator may).
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        if COUNTED.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        if COUNTED.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -32,11 +45,14 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// Allocations made by `f`.
+/// Allocations made by `f` on this thread.
 fn allocations(f: impl FnOnce()) -> usize {
+    COUNTED.with(|c| c.set(true));
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     f();
-    ALLOCATIONS.load(Ordering::SeqCst) - before
+    let count = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    COUNTED.with(|c| c.set(false));
+    count
 }
 
 #[test]

@@ -1,6 +1,10 @@
 //! No allocation per iteration: every solver's allocations during a solve must not grow with the
 //! number of iterations it runs (a solve may allocate its report once, sized up front). Measured
 //! with a counting global allocator; one test function, so no other test allocates concurrently.
+//! The count is process-wide (parallel projective dynamics allocates, if at all, on rayon's
+//! threads), and the test harness's own thread allocates a few times on its own schedule (seen in
+//! about one run in three), so each figure is the fewest of three identical measurements: an
+//! allocation per iteration shows in every one of them.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -35,11 +39,16 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// Allocations made by `f`.
+/// Allocations made while `f` runs.
 fn allocations(f: impl FnOnce()) -> usize {
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     f();
     ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+/// The fewest allocations of three runs of the same measurement (see the module documentation).
+fn fewest(mut measure: impl FnMut() -> usize) -> usize {
+    (0..3).map(|_| measure()).min().expect("three runs")
 }
 
 #[test]
@@ -85,7 +94,7 @@ fn solvers_do_not_allocate_per_iteration() {
             })
         };
         run(3); // warm-up: rayon's pool and any lazily sized buffer
-        let (few, many) = (run(2), run(40));
+        let (few, many) = (fewest(|| run(2)), fewest(|| run(40)));
         assert_eq!(
             few, many,
             "PD (parallel: {parallel}): {few} allocations in 2 iterations, {many} in 40"
@@ -106,7 +115,7 @@ fn solvers_do_not_allocate_per_iteration() {
         })
     };
     run(2);
-    let (few, many) = (run(1), run(4));
+    let (few, many) = (fewest(|| run(1)), fewest(|| run(4)));
     assert_eq!(
         few, many,
         "Newton: {few} allocations in 1 iteration, {many} in 4"
@@ -146,7 +155,7 @@ fn solvers_do_not_allocate_per_iteration() {
         })
     };
     run(3);
-    let (few, many) = (run(2), run(20));
+    let (few, many) = (fewest(|| run(2)), fewest(|| run(20)));
     assert_eq!(
         few, many,
         "CG: {few} allocations in 2 iterations, {many} in 20"
@@ -163,7 +172,7 @@ fn solvers_do_not_allocate_per_iteration() {
         })
     };
     run(3);
-    let (few, many) = (run(2), run(20));
+    let (few, many) = (fewest(|| run(2)), fewest(|| run(20)));
     assert_eq!(
         few, many,
         "Jacobi: {few} allocations in 2 iterations, {many} in 20"
@@ -187,7 +196,7 @@ fn solvers_do_not_allocate_per_iteration() {
         })
     };
     for step in 0..40 {
-        let count = refill(step);
+        let count = fewest(|| refill(step));
         assert_eq!(count, 0, "BlockJacobi::refill allocated {count} times");
     }
     let mut steps = |count: usize, iterations: usize| {
@@ -209,7 +218,7 @@ fn solvers_do_not_allocate_per_iteration() {
         })
     };
     steps(2, 3);
-    let (two, forty) = (steps(2, 2), steps(40, 20));
+    let (two, forty) = (fewest(|| steps(2, 2)), fewest(|| steps(40, 20)));
     assert_eq!(
         20 * two,
         forty,
