@@ -340,6 +340,10 @@ fn run_setup<const D: usize>(
                 .and_then(|r| r.solver)
                 .map(|s| stop_name(s.stop).to_string()),
             clamped_hessian: report.is_some_and(|r| r.clamped_hessian),
+            halved_into: report
+                .and_then(|r| r.solver)
+                .map(|s| s.substeps)
+                .filter(|&pieces| pieces > 1),
             wall_time_s: report.map_or(0.0, |r| r.wall_time.as_secs_f64()),
         }
     };

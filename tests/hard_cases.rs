@@ -11,8 +11,9 @@
 //!   fallback), or stop on [`SimError::EnergyGrowth`] (one Newton step without line search
 //!   overshoots on stiff springs at large steps) or the divergence checks;
 //! - projective dynamics has no failure mode: it must finish;
-//! - backward Euler by Newton must finish on every case (issue 5); cases where it does not yet are
-//!   listed in [`NEWTON_KNOWN_FAILURES`] and run by an ignored test (issue 4).
+//! - backward Euler by Newton must finish on every case, every step converged (issue 5). On the
+//!   crushed and stretched starts it does so by halving the steps it cannot finish (the `implicit`
+//!   module of hooke-sim); the matrix shows the most pieces a frame took.
 //!
 //! "Bounded energy": none of these scenes has an energy source (no damping, wind or moving pins),
 //! so the exact flow keeps the total energy E (kinetic + elastic + gravity) at E₀. A finished run
@@ -35,12 +36,6 @@ const FRAMES: usize = 3;
 const NEWTON_FRAMES: usize = 2;
 /// Explicit methods take at most this many substeps a frame; above, they must refuse.
 const MAX_SUBSTEPS: usize = 1000;
-
-/// Cases that Newton (200 iterations, relative gradient 1e-8) does not finish yet (issue 4), with
-/// what was seen at commit 15f0cfe: "stretched x3" and "crushed to 1%" each have "1 step(s) stopped
-/// at the iteration limit". (At 2c1735c "stiff h=1/5" also hit the limit, and "crushed to 1%" failed
-/// with "the Hessian could not be made positive definite (shift above 1e12) at iteration 126".)
-const NEWTON_KNOWN_FAILURES: &[&str] = &["stretched x3", "crushed to 1%"];
 
 /// The hard case `name` on cloth-40, built by the library (`hooke::bench::hard_case`, shared with
 /// `hooke bench --hard-cases`), with the two properties SCENES.md states checked here.
@@ -80,6 +75,8 @@ enum Outcome {
         scale: f64,
         /// Steps whose solver stopped at its iteration limit.
         unconverged: usize,
+        /// The most pieces one frame was split into (explicit substeps, or Newton's halving).
+        pieces: usize,
     },
     /// Stopped with this error (at `frame`, 0 for the setup).
     Stopped { frame: usize, error: SimError },
@@ -96,6 +93,7 @@ fn run(case_name: &str, integrator: &str) -> Outcome {
     let scale = energy_scale(sim.scene(), &sim.state().positions);
     let mut e_max = f64::NEG_INFINITY;
     let mut unconverged = 0;
+    let mut pieces = 0;
     let frames = if integrator == "newton" {
         NEWTON_FRAMES
     } else {
@@ -105,6 +103,7 @@ fn run(case_name: &str, integrator: &str) -> Outcome {
         match sim.step() {
             Err(error) => return Outcome::Stopped { frame, error },
             Ok(report) => {
+                pieces = pieces.max(report.substeps);
                 if report
                     .solver
                     .is_some_and(|s| s.stop == StopReason::IterationLimit)
@@ -129,6 +128,7 @@ fn run(case_name: &str, integrator: &str) -> Outcome {
         e_max,
         scale,
         unconverged,
+        pieces,
     }
 }
 
@@ -200,6 +200,7 @@ fn matrix(cases: &[&str], integrators: &[&str]) -> Vec<String> {
                     e_max,
                     scale,
                     unconverged,
+                    pieces,
                 } => {
                     // Newton must converge; the others report their iteration limits (PD runs a
                     // fixed number of iterations by design).
@@ -214,7 +215,7 @@ fn matrix(cases: &[&str], integrators: &[&str]) -> Vec<String> {
                         ));
                     }
                     let mark = if *unconverged > 0 { "*" } else { "" };
-                    format!("ok{mark} E {e0:.2e}→{e_max:.2e}")
+                    format!("ok{mark} E {e0:.2e}→{e_max:.2e} ×{pieces}")
                 }
                 Outcome::Stopped { frame, error } => {
                     if !allowed(i, error) {
@@ -244,23 +245,6 @@ fn every_integrator_but_newton_on_every_hard_case() {
 
 #[test]
 fn newton_finishes_every_hard_case() {
-    let cases: Vec<&str> = HARD_CASES
-        .iter()
-        .copied()
-        .filter(|c| !NEWTON_KNOWN_FAILURES.contains(c))
-        .collect();
-    let failures = matrix(&cases, &["newton"]);
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
-}
-
-// Ignored because it fails today, and is kept (not deleted, not loosened) as the check that issue 4
-// must make pass: Newton has to finish these two cases like the others. Measured this session
-// (`HOOKE_START=stretch3|crush newton_probe 40 3`): stretched ×3 needs 209 and 95 iterations in
-// its 2nd and 3rd steps, crushed to 1 % stops its 1st step at 300 iterations (gradient 5e-4);
-// `cargo test --test hard_cases -- --ignored` runs it.
-#[test]
-#[ignore = "issue 4: Newton does not converge on stretched x3 and crushed to 1%: a step stops at the 200-iteration limit"]
-fn newton_finishes_the_hard_cases_it_does_not_yet() {
-    let failures = matrix(NEWTON_KNOWN_FAILURES, &["newton"]);
+    let failures = matrix(HARD_CASES, &["newton"]);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

@@ -91,6 +91,11 @@ pub struct StepRecord {
     /// gave a system that is not positive definite.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub clamped_hessian: bool,
+    /// Backward Euler by Newton did not finish this step and redid it as this many smaller steps
+    /// (adaptive halving); `solver_iterations` then includes the given-up attempts. Absent when the
+    /// step was not split.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub halved_into: Option<usize>,
     /// Wall-clock time spent on the step, in seconds (s).
     #[serde(deserialize_with = "f64_or_nan")]
     pub wall_time_s: f64,
@@ -167,6 +172,7 @@ mod tests {
                     solver_residual: Some(3.5e-11),
                     solver_stop: Some("converged".into()),
                     clamped_hessian: true,
+                    halved_into: Some(4),
                     wall_time_s: 0.0042,
                 },
                 StepRecord {
@@ -180,6 +186,7 @@ mod tests {
                     solver_residual: None,
                     solver_stop: None,
                     clamped_hessian: false,
+                    halved_into: None,
                     wall_time_s: 1e-3,
                 },
             ],

@@ -27,7 +27,8 @@ const PARALLEL_VERTICES: usize = 8 * 1024;
 /// What one frame step did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepReport {
-    /// Substeps taken (1 for implicit methods).
+    /// Substeps taken: the explicit methods' substeps per frame; for implicit methods 1, unless
+    /// backward Euler by Newton halved a step it could not finish (then the number of pieces).
     pub substeps: usize,
     /// The solver's summary, for integrators that solve a system.
     pub solver: Option<SolveSummary>,
@@ -327,7 +328,8 @@ impl<const D: usize> Simulation<D> {
             }
         }
         Ok(StepReport {
-            substeps: self.substeps,
+            // Backward Euler by Newton may halve a step it cannot finish (see `implicit`).
+            substeps: solver.map_or(self.substeps, |s| s.substeps),
             solver,
             wall_time: start.elapsed(),
             clamped_hessian,

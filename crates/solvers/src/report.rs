@@ -24,6 +24,10 @@ pub struct SolveSummary {
     pub residual: f64,
     /// Why it stopped.
     pub stop: StopReason,
+    /// Time steps the solve was split into: 1, unless an integrator redid a step it could not
+    /// finish as several smaller ones (backward Euler by Newton halves such steps); then
+    /// `iterations` sums over them, including the attempts that were given up.
+    pub substeps: usize,
 }
 
 /// The full account of a solve.
@@ -62,6 +66,7 @@ impl Report {
             iterations: self.iterations,
             residual: self.residual(),
             stop: self.stop,
+            substeps: 1,
         }
     }
 }
