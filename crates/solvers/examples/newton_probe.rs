@@ -7,7 +7,8 @@
 //! (`shift`: use `IndefinitePolicy::Shift` instead of the default). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
-//! and z; crushed to 1 %).
+//! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k); `HOOKE_DEFINITENESS=clamped`
+//! factors the clamped Hessian in every iteration.
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -24,7 +25,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mesh = generators::cloth(n, 1e3)?;
     let pinned = [0u32, n as u32 - 1];
-    let h = 1.0 / 30.0;
+    // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
+    let substeps: f64 = std::env::var("HOOKE_SUBSTEPS").map_or(Ok(1.0), |s| s.parse())?;
+    let h = 1.0 / (30.0 * substeps);
     let gravity = Vector3::new(0.0, -9.81, 0.0);
     let free = FreeDofs::new(mesh.vertex_count(), &pinned)?;
     let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
@@ -34,6 +37,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         indefinite,
         ..Default::default()
     };
+    // HOOKE_DEFINITENESS=clamped: factor the clamped Hessian in every iteration instead.
+    if std::env::var("HOOKE_DEFINITENESS").as_deref() == Ok("clamped") {
+        step.set_definiteness(hooke_assembly::Definiteness::Clamped);
+    }
     let mut newton = Newton::new(step.pattern(), params)?;
     let mut x = mesh.positions().to_vec();
     // HOOKE_START=stretch3 | crush: SCENES.md's hard-case starts (×3 in x and z; to 1 %).
@@ -90,13 +97,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(r.iterations, |k| k + 1);
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
-             {} indefinite, {} failed attempts, {:.2?} ({:.2?} factoring)",
+             {} indefinite, {} failed attempts, {} factorizations, {:.2?} ({:.2?} factoring)",
             r.iterations,
             r.stop,
             r.gradient(),
             r.shifted_steps,
             r.indefinite_steps,
             r.failed_factorizations,
+            r.factorizations,
             r.wall_time,
             r.factor_time
         );
