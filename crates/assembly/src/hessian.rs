@@ -156,7 +156,8 @@ impl<const D: usize> HessianPattern<D> {
     /// [`hessian_block`](crate::spring::hessian_block) of the spring with `params.definiteness`.
     ///
     /// No allocation. Each block column gathers the blocks of its springs in increasing spring
-    /// order and writes its values, in column order (the writes stream through the value array);
+    /// order and writes its values, in column order (the writes stream through the value array, and
+    /// on x86-64 arrays of 16 MiB or more are prefetched a few columns ahead of them);
     /// a spring's block −h² H_s is computed once, by its first free end, a few springs at a time
     /// (vectorised), and kept in a small ring buffer in `workspace` for the second (computed again
     /// only where the two ends fall in different parallel tasks; see the `schedule` module). Every
@@ -217,6 +218,7 @@ impl<const D: usize> HessianPattern<D> {
             positions,
             masses,
             h2: h * h,
+            prefetch: values.len() >= PREFETCH_MIN_VALUES,
         };
         let ring_offsets = Some(self.schedule.ring_offsets());
         let ring = &mut workspace.ring;
@@ -401,6 +403,8 @@ struct Refill<'a, const D: usize> {
     positions: &'a [SVector<f64, D>],
     masses: &'a [f64],
     h2: f64,
+    /// Whether to prefetch the value array ahead of the writes (large arrays only).
+    prefetch: bool,
 }
 
 impl<const D: usize> Refill<'_, D> {
@@ -460,6 +464,9 @@ impl<const D: usize> Refill<'_, D> {
             let len = plan.len as usize;
             let (out, tail) = std::mem::take(&mut rest).split_at_mut(D * len);
             rest = tail;
+            if self.prefetch {
+                prefetch_ahead(rest, D * len);
+            }
             let (mine, others) = gathers.split_at(plan.gathers as usize);
             gathers = others;
             let mass = self.masses[plan.vertex as usize];
@@ -640,6 +647,33 @@ impl<const D: usize> Refill<'_, D> {
             }
         }
     }
+}
+
+/// How far ahead of the column being written a refill prefetches the value array, in values
+/// (8 KiB: several columns of a cloth, enough to cover the memory latency).
+const PREFETCH_AHEAD: usize = 1024;
+/// Value arrays of at least this many values (16 MiB) are prefetched ahead of the writes: on
+/// arrays that stay in cache the prefetches cost more than they save.
+const PREFETCH_MIN_VALUES: usize = 1 << 21;
+
+/// Ask for the cache lines of the `len` values `PREFETCH_AHEAD` values into `rest` (the part of
+/// the value array after the column being written), so that the writes a few columns later find
+/// their lines in cache instead of stalling on them; called once per column, this covers the
+/// array line by line. A hint only: no effect on the values, and none off x86-64.
+#[inline(always)]
+fn prefetch_ahead(rest: &[f64], len: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let base = rest.as_ptr().wrapping_add(PREFETCH_AHEAD);
+        for k in (0..len).step_by(8) {
+            // SAFETY: a prefetch is a hint that reads and writes nothing and never faults, whatever
+            // the address (past the end of the array included, reached by wrapping arithmetic).
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(k).cast()) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (rest, len);
 }
 
 /// Springs whose blocks a refill computes together.
