@@ -117,7 +117,9 @@ impl BlockGraph {
         let mut leaves = vec![0];
         split_leaves(
             0..n_free,
-            (n_free / LEAVES_WANTED).clamp(MIN_LEAF_COLUMNS, MAX_LEAF_COLUMNS),
+            n_free
+                .div_ceil(LEAVES_WANTED)
+                .clamp(MIN_LEAF_COLUMNS, MAX_LEAF_COLUMNS),
             &mut leaves,
         );
         // Block rows per column: the diagonal and the free neighbours, sorted, deduplicated.
@@ -433,7 +435,9 @@ pub(crate) fn matrix_owned(
 
 /// About this many leaves on large meshes, to balance the load over a few threads.
 const LEAVES_WANTED: usize = 16;
-/// Leaves are halved down to at most `columns / LEAVES_WANTED` columns, kept within these bounds:
+/// Leaves are halved down to at most ⌈columns / LEAVES_WANTED⌉ columns (rounded up: rounded down,
+/// the halves of a column count that is not a multiple of LEAVES_WANTED exceed the limit by a
+/// fraction and are halved once more, giving twice as many leaves), kept within these bounds:
 /// large enough that few springs cross a leaf boundary on meshes with a banded numbering (cloth-N
 /// joins columns up to 2N apart; a crossing spring's block is computed twice), small enough for
 /// load balance.
