@@ -665,11 +665,13 @@ fn prefetch_ahead(rest: &[f64], len: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let base = rest.as_ptr().wrapping_add(PREFETCH_AHEAD);
-        for k in (0..len).step_by(8) {
+        let mut at = rest.as_ptr().wrapping_add(PREFETCH_AHEAD);
+        let end = at.wrapping_add(len);
+        while at < end {
             // SAFETY: a prefetch is a hint that reads and writes nothing and never faults, whatever
             // the address (past the end of the array included, reached by wrapping arithmetic).
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_add(k).cast()) };
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(at.cast()) };
+            at = at.wrapping_add(8);
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
