@@ -2,7 +2,8 @@
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use hooke_assembly::{
-    Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces,
+    CounterForce, Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace,
+    SpringForces,
 };
 use hooke_mesh::Spring;
 use nalgebra::SVector;
@@ -20,10 +21,26 @@ use crate::NewtonProblem;
 /// the step's start x_n, h² times it is −∇Ψ of the dissipation potential
 /// Ψ(x) = (h c / 2) Σ_s ((Δx_i − Δx_j)·d_s)², Δx = x − x_n, which
 /// [`BackwardEulerStep::set_dashpot`] adds to Φ (value, gradient and Hessian h c d dᵀ blocks).
+///
+/// # Pins: reduction or counter-forces (SPEC §3)
+/// [`BackwardEulerStep::new`] removes the pinned vertices from the unknowns (the reduction, the
+/// default). [`BackwardEulerStep::with_counter_forces`] keeps every vertex an unknown (D per vertex,
+/// DOF D·v + a component a of vertex v) and applies [`CounterForce`] to the full-DOF Hessian and
+/// gradient: the pinned rows and columns of the Hessian become m_p I (the effective masses) and the
+/// pinned gradient entries zero, the counter-force cancelling every force on a pinned vertex. The
+/// objective is Φ̂(x) = Φ(x with every pinned vertex at its held position), which depends on the free
+/// unknowns only, so its gradient is exactly that modified gradient; its value and
+/// [`NewtonProblem::objective_change`] are those of the reduction. [`BackwardEulerStep::set_step`]
+/// puts the pinned unknowns on the pinned positions; a Newton step then never moves them (their
+/// gradient is zero and their rows decouple, so the factorisation gives Δx_p = 0), and the positions
+/// read back take them from the held positions in any case. Both modes solve the same free system
+/// (see [`CounterForce`]); the counter-force one carries the pinned DOFs as extra decoupled rows.
 #[derive(Debug)]
 pub struct BackwardEulerStep<const D: usize> {
     free: FreeDofs,
     pattern: HessianPattern<D>,
+    /// Counter-force mode: every vertex an unknown, the pinned rows and columns replaced.
+    counter: Option<CounterForce<D>>,
     workspace: HessianWorkspace<D>,
     values: Vec<f64>,
     forces: SpringForces<D>,
@@ -50,15 +67,46 @@ pub struct BackwardEulerStep<const D: usize> {
 
 impl<const D: usize> BackwardEulerStep<D> {
     /// The step for `springs` and `masses` (kg, per vertex) over the free vertices of `free`, with
-    /// time step `h` (s).
+    /// time step `h` (s): pins by reduction, one unknown per free DOF.
     ///
     /// # Panics
     /// If `masses` does not have one entry per vertex of `free`.
     #[track_caller]
     pub fn new(springs: &[Spring], masses: &[f64], free: FreeDofs, h: f64) -> Self {
+        Self::build(springs, masses, free, h, false)
+    }
+
+    /// The step for `springs` and `masses` (kg, per vertex) with the pinned vertices of `pins` held
+    /// by counter-forces (see the type's documentation), with time step `h` (s): one unknown per DOF
+    /// of every vertex, pinned or not.
+    ///
+    /// # Panics
+    /// If `masses` does not have one entry per vertex of `pins`.
+    #[track_caller]
+    pub fn with_counter_forces(springs: &[Spring], masses: &[f64], pins: FreeDofs, h: f64) -> Self {
+        Self::build(springs, masses, pins, h, true)
+    }
+
+    #[track_caller]
+    fn build(springs: &[Spring], masses: &[f64], free: FreeDofs, h: f64, counter: bool) -> Self {
         let n = free.vertex_count();
         assert_eq!(masses.len(), n, "one mass per vertex");
-        let pattern = HessianPattern::new(n, springs, Some(&free));
+        let (pattern, counter) = if counter {
+            let pattern = HessianPattern::new(n, springs, None);
+            let counter = CounterForce::new(&pattern, &free);
+            (pattern, Some(counter))
+        } else {
+            (HessianPattern::new(n, springs, Some(&free)), None)
+        };
+        // The shift's diagonal, one mass per unknown.
+        let shift = if counter.is_some() {
+            masses.iter().flat_map(|&m| [m; D]).collect()
+        } else {
+            free.free_vertices()
+                .iter()
+                .flat_map(|&v| [masses[v as usize]; D])
+                .collect()
+        };
         BackwardEulerStep {
             workspace: pattern.workspace(),
             values: pattern.new_values(),
@@ -66,11 +114,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             force: vec![SVector::zeros(); n],
             masses: masses.to_vec(),
             springs: springs.to_vec(),
-            shift: free
-                .free_vertices()
-                .iter()
-                .flat_map(|&v| [masses[v as usize]; D])
-                .collect(),
+            shift,
             max_degree: {
                 let mut degree = vec![0usize; n];
                 for spring in springs {
@@ -90,11 +134,25 @@ impl<const D: usize> BackwardEulerStep<D> {
             dashpot_directions: Vec::new(),
             free,
             pattern,
+            counter,
         }
     }
 
+    /// Whether the pins are held by counter-forces (every vertex an unknown) rather than removed.
+    pub fn has_counter_forces(&self) -> bool {
+        self.counter.is_some()
+    }
+
+    /// The first unknown of vertex `v`, free vertex number `f`: D·v with counter-forces, D·f with
+    /// the reduction.
+    #[inline]
+    fn offset(full: bool, f: usize, v: usize) -> usize {
+        D * if full { v } else { f }
+    }
+
     /// Set the inertial target y (per vertex, m) and the positions (per vertex, m; the pinned ones
-    /// are held there), and write the free part of `y`, the usual initial guess, into `unknowns`.
+    /// are held there), and write the free part of `y`, the usual initial guess, into `unknowns`
+    /// (with counter-forces, the pinned unknowns get the pinned positions).
     ///
     /// # Panics
     /// On length mismatches.
@@ -107,8 +165,16 @@ impl<const D: usize> BackwardEulerStep<D> {
     ) {
         self.y.copy_from_slice(y);
         self.x.copy_from_slice(positions);
+        let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            unknowns[D * f..D * f + D].copy_from_slice(self.y[v as usize].as_slice());
+            let o = Self::offset(full, f, v as usize);
+            unknowns[o..o + D].copy_from_slice(self.y[v as usize].as_slice());
+        }
+        if full {
+            for &p in self.free.pinned() {
+                let o = D * p as usize;
+                unknowns[o..o + D].copy_from_slice(self.x[p as usize].as_slice());
+            }
         }
     }
 
@@ -168,7 +234,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.definiteness = definiteness;
     }
 
-    /// The full positions for the unknowns `xf` (pinned vertices as set).
+    /// The full positions for the unknowns `xf` (pinned vertices as set by
+    /// [`BackwardEulerStep::set_step`], whatever the pinned unknowns hold).
     pub fn positions(&mut self, xf: &[f64]) -> &[SVector<f64, D>] {
         self.expand(xf);
         &self.x
@@ -180,15 +247,21 @@ impl<const D: usize> BackwardEulerStep<D> {
     }
 
     fn expand(&mut self, xf: &[f64]) {
+        let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            self.x[v as usize] = SVector::from_column_slice(&xf[D * f..D * f + D]);
+            let o = Self::offset(full, f, v as usize);
+            self.x[v as usize] = SVector::from_column_slice(&xf[o..o + D]);
         }
     }
 }
 
 impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     fn dim(&self) -> usize {
-        D * self.free.free_count()
+        if self.counter.is_some() {
+            D * self.free.vertex_count()
+        } else {
+            D * self.free.free_count()
+        }
     }
 
     fn objective(&mut self, xf: &[f64]) -> f64 {
@@ -220,10 +293,12 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             *d = SVector::zeros();
         }
         let mut inertia = 0.0;
+        let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
-            let x = SVector::<f64, D>::from_column_slice(&xf[D * f..D * f + D]);
-            let t = SVector::<f64, D>::from_column_slice(&trial[D * f..D * f + D]);
+            let o = Self::offset(full, f, v);
+            let x = SVector::<f64, D>::from_column_slice(&xf[o..o + D]);
+            let t = SVector::<f64, D>::from_column_slice(&trial[o..o + D]);
             let delta = t - x;
             self.trial_positions[v] = delta;
             inertia += 0.5 * self.masses[v] * delta.dot(&((x - self.y[v]) * 2.0 + delta));
@@ -274,10 +349,16 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 self.force[j] += f;
             }
         }
+        let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
             let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
-            g[D * f..D * f + D].copy_from_slice(gv.as_slice());
+            let o = Self::offset(full, f, v);
+            g[o..o + D].copy_from_slice(gv.as_slice());
+        }
+        if let Some(counter) = &self.counter {
+            // The counter-force cancels the whole force on a pinned vertex held in place.
+            counter.apply_to_gradient(g);
         }
     }
 
@@ -354,6 +435,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 self.h,
                 &mut self.values,
             );
+        }
+        if let Some(counter) = &self.counter {
+            // Pinned rows and columns: m_p I on the diagonal, zero elsewhere.
+            counter.apply_to_matrix(&self.masses, &mut self.values);
         }
         self.pattern.matrix(&self.values)
     }
