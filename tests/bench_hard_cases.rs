@@ -1,6 +1,6 @@
 //! `hooke bench --hard-cases` through the library on a small cloth: every case with every
-//! integrator gives a cell, Newton finishes every case without gaining energy, and bad names are
-//! errors, not panics.
+//! integrator gives a cell, Newton finishes every case, converged in every frame, without gaining
+//! energy, and bad names are errors, not panics.
 //!
 //! Not asserted for PD: on cloth-8 (not SCENES.md's cloth-40) projective dynamics with its default
 //! 10 iterations fails `stiff h=1/5` in the first step: the truncated solve leaves most of the
@@ -25,9 +25,16 @@ fn every_case_and_integrator_gives_a_cell_and_newton_finishes() {
             HardOutcome::Ok {
                 energy_drift,
                 max_stretch,
+                unconverged,
+                max_pieces,
             } => {
                 assert!(energy_drift.is_finite() && max_stretch.is_finite(), "{r:?}");
-                assert!(*max_stretch >= 0.0, "{r:?}");
+                assert!(*max_stretch >= 0.0 && *max_pieces >= 1, "{r:?}");
+                // Newton converges in every frame (halving the step where it must).
+                assert!(
+                    r.integrator != "newton" || *unconverged == 0,
+                    "Newton stopped at its iteration limit: {r:?}"
+                );
             }
             HardOutcome::Refused { error } | HardOutcome::Failed { error, .. } => {
                 assert!(!error.is_empty(), "{r:?}");

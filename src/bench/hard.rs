@@ -24,7 +24,7 @@ use crate::sim::{
     scenes, stability_bound, Integrator, LinearSolver, LinearizedParams, Pins, Scene, Settings,
     SimError, Simulation, State,
 };
-use crate::solvers::NewtonParams;
+use crate::solvers::{NewtonParams, StopReason};
 
 /// The hard cases, in the order of SCENES.md.
 pub const HARD_CASES: &[&str] = &[
@@ -81,6 +81,12 @@ pub enum HardOutcome {
         energy_drift: f64,
         /// Largest spring stretch |r|/l over all frames (1 at rest).
         max_stretch: f64,
+        /// Frames whose solver stopped at its iteration limit instead of converging (projective
+        /// dynamics runs a fixed number of iterations by design and counts here).
+        unconverged: usize,
+        /// The most pieces one frame was split into: explicit substeps, or the halves of a step
+        /// that Newton did not finish (1: never split).
+        max_pieces: usize,
     },
     /// The simulation refused to start.
     Refused {
@@ -166,24 +172,37 @@ fn run(scene: Scene<3>, state: State<3>, settings: Settings, frames: usize) -> H
     };
     let e0 = sim.energy().total;
     let mut max_stretch = sim.scene().max_stretch(sim.state());
+    let (mut unconverged, mut max_pieces) = (0, 1);
     for frame in 1..=frames {
-        if let Err(e) = sim.step() {
-            return match e {
-                SimError::UnstableStep { .. } => HardOutcome::Refused {
-                    error: e.to_string(),
-                },
-                e => HardOutcome::Failed {
-                    frame,
-                    error: e.to_string(),
-                    max_stretch,
-                },
-            };
+        let report = match sim.step() {
+            Ok(report) => report,
+            Err(e) => {
+                return match e {
+                    SimError::UnstableStep { .. } => HardOutcome::Refused {
+                        error: e.to_string(),
+                    },
+                    e => HardOutcome::Failed {
+                        frame,
+                        error: e.to_string(),
+                        max_stretch,
+                    },
+                };
+            }
+        };
+        if report
+            .solver
+            .is_some_and(|s| s.stop == StopReason::IterationLimit)
+        {
+            unconverged += 1;
         }
+        max_pieces = max_pieces.max(report.substeps);
         max_stretch = max_stretch.max(sim.scene().max_stretch(sim.state()));
     }
     HardOutcome::Ok {
         energy_drift: (sim.energy().total - e0) / (e0.abs() + scale),
         max_stretch,
+        unconverged,
+        max_pieces,
     }
 }
 

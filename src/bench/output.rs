@@ -204,7 +204,17 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
                         HardOutcome::Ok {
                             energy_drift,
                             max_stretch,
-                        } => format!("ok  dE {energy_drift:+.1e} s {max_stretch:.2}"),
+                            unconverged,
+                            max_pieces,
+                        } => {
+                            let mark = if *unconverged > 0 { "*" } else { " " };
+                            let pieces = if *max_pieces > 1 {
+                                format!(" x{max_pieces}")
+                            } else {
+                                String::new()
+                            };
+                            format!("ok{mark} dE {energy_drift:+.1e} s {max_stretch:.2}{pieces}")
+                        }
                         HardOutcome::Refused { error } => {
                             details += &format!("{c}, {i}: refused: {error}\n");
                             "refused".to_string()
