@@ -18,9 +18,17 @@
 //! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve (as in the explicit integrators);
 //! - contact: not here; the simulation projects the whole mesh after the step (the `contact`
 //!   module), so the scene given to `BackwardEuler::step` has its contacts taken out;
-//! - pins: removed from the unknowns (SPEC §3 reduction), held at their positions, or at the end of
-//!   the step moved to where their prescribed path is at t + h (the right-hand side changes, the
-//!   matrices do not: PD's factorisation and Newton's symbolic analysis are kept).
+//! - pins: removed from the unknowns (SPEC §3 reduction, [`PinMethod::Reduction`]), held at their
+//!   positions, or at the end of the step moved to where their prescribed path is at t + h (the
+//!   right-hand side changes, the matrices do not: PD's factorisation and Newton's symbolic
+//!   analysis are kept). With [`PinMethod::CounterForce`] Newton keeps every vertex an unknown
+//!   ([`BackwardEulerStep::with_counter_forces`]): the pinned vertices are placed where their path
+//!   is at t + h before the solve, and the counter-forces' rows hold them there; the step is the
+//!   reduction's up to round-off. Projective dynamics refuses counter-forces with
+//!   [`SimError::Unsupported`]: its global matrix M + h² L never holds the spring forces'
+//!   Jacobian, so a counter-force has nothing to cancel there, and the matrix with pinned rows and
+//!   columns replaced by the masses would only add decoupled rows to the reduced system (the same
+//!   positions at a higher cost).
 //!
 //! A Newton step that does not converge is redone as smaller steps (adaptive halving, see
 //! `MAX_HALVINGS`): backward Euler by Newton finishes even from SCENES.md's crushed and stretched
@@ -34,7 +42,7 @@ use hooke_solvers::{
 use nalgebra::SVector;
 
 use crate::forces::ExternalForce;
-use crate::{Scene, SimError};
+use crate::{PinMethod, Scene, SimError};
 
 /// Which solver, with its state kept across steps.
 #[derive(Debug)]
@@ -53,6 +61,8 @@ enum Solver<const D: usize> {
 #[derive(Debug)]
 pub(crate) struct BackwardEuler<const D: usize> {
     solver: Solver<D>,
+    /// How pins are held (Newton builds its half-step integrator the same way).
+    pins: PinMethod,
     /// Effective masses A (kg, per vertex): see the module documentation.
     inertia: Vec<f64>,
     x_start: Vec<SVector<f64, D>>,
@@ -192,15 +202,29 @@ fn inertial_target<const D: usize>(
 }
 
 impl<const D: usize> BackwardEuler<D> {
-    /// Newton's method on Φ.
-    pub(crate) fn newton(scene: &Scene<D>, params: NewtonParams) -> Result<Self, SimError> {
+    /// Newton's method on Φ, pins held by `pins`.
+    pub(crate) fn newton(
+        scene: &Scene<D>,
+        params: NewtonParams,
+        pins: PinMethod,
+    ) -> Result<Self, SimError> {
         check_supported(scene, "newton")?;
         let mesh = scene.mesh();
         let n = mesh.vertex_count();
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
         let inertia = effective_masses(scene);
-        let objective = BackwardEulerStep::new(mesh.springs(), &inertia, free, scene.time_step());
+        let objective = match pins {
+            PinMethod::Reduction => {
+                BackwardEulerStep::new(mesh.springs(), &inertia, free, scene.time_step())
+            }
+            PinMethod::CounterForce => BackwardEulerStep::with_counter_forces(
+                mesh.springs(),
+                &inertia,
+                free,
+                scene.time_step(),
+            ),
+        };
         let newton = Newton::new(objective.pattern(), params).map_err(|e| SimError::Solver {
             message: e.to_string(),
         })?;
@@ -211,6 +235,7 @@ impl<const D: usize> BackwardEuler<D> {
                 objective: Box::new(objective),
                 unknowns,
             },
+            pins,
             inertia,
             x_start: vec![SVector::zeros(); n],
             y: vec![SVector::zeros(); n],
@@ -231,9 +256,24 @@ impl<const D: usize> BackwardEuler<D> {
         }
     }
 
-    /// Projective dynamics on Φ (the matrix is factored here, once).
-    pub(crate) fn projective(scene: &Scene<D>, params: PdParams) -> Result<Self, SimError> {
+    /// Projective dynamics on Φ (the matrix is factored here, once). Pins by reduction only: see
+    /// the module documentation.
+    pub(crate) fn projective(
+        scene: &Scene<D>,
+        params: PdParams,
+        pins: PinMethod,
+    ) -> Result<Self, SimError> {
         check_supported(scene, "pd")?;
+        if pins == PinMethod::CounterForce && !scene.pinned().is_empty() {
+            return Err(SimError::Unsupported {
+                integrator: "pd".to_string(),
+                what: "pins by counter-force (its global matrix M + h² L never holds the force \
+                       Jacobian a counter-force cancels, and pinned rows replaced by the masses \
+                       would only add decoupled rows to the same solve: use pin method \
+                       reduction)"
+                    .to_string(),
+            });
+        }
         let mesh = scene.mesh();
         let n = mesh.vertex_count();
         let free = FreeDofs::new(n, scene.pinned())
@@ -246,6 +286,7 @@ impl<const D: usize> BackwardEuler<D> {
                 })?;
         Ok(BackwardEuler {
             solver: Solver::Projective { pd: Box::new(pd) },
+            pins,
             inertia,
             x_start: vec![SVector::zeros(); n],
             y: vec![SVector::zeros(); n],
@@ -319,7 +360,7 @@ impl<const D: usize> BackwardEuler<D> {
         };
         if self.half.is_none() {
             let half_scene = scene.clone().with_time_step(0.5 * scene.time_step())?;
-            let integrator = BackwardEuler::newton(&half_scene, params)?;
+            let integrator = BackwardEuler::newton(&half_scene, params, self.pins)?;
             self.half = Some(Box::new(Half {
                 scene: half_scene,
                 integrator,

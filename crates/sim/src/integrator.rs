@@ -154,6 +154,68 @@ impl FromStr for LinearSolver {
     }
 }
 
+/// How the implicit integrators hold pinned vertices (SPEC §3).
+///
+/// Both methods solve the same system for the free vertices and give the same steps up to
+/// round-off (see [`hooke_assembly::CounterForce`]); a pinned vertex is at its prescribed position
+/// after every step either way. The explicit integrators solve no system and hold pinned vertices
+/// the same way under both settings.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum PinMethod {
+    /// Remove the pinned DOFs from the unknowns (seed 003's second method, the default): the
+    /// smallest system.
+    #[default]
+    Reduction,
+    /// Keep every DOF an unknown and cancel the force on each pinned vertex by a counter-force,
+    /// with its derivative in the Jacobian (seed 003's first method): the pinned rows and columns
+    /// of the system become m_p I. Supported by `newton` and `linearized`; `pd` refuses it with
+    /// [`SimError::Unsupported`] (its one constant matrix would only gain decoupled rows: the
+    /// counter-force has no Jacobian to enter a matrix that never holds the force's).
+    CounterForce,
+}
+
+impl PinMethod {
+    /// Both methods, in the order the command lists them.
+    pub const ALL: &'static [PinMethod] = &[PinMethod::Reduction, PinMethod::CounterForce];
+
+    /// The name used in scene files and on the command line (`reduction`, `counter-force`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            PinMethod::Reduction => "reduction",
+            PinMethod::CounterForce => "counter-force",
+        }
+    }
+}
+
+impl fmt::Display for PinMethod {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown pin method name.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown pin method {name:?}; expected \"reduction\" or \"counter-force\"")]
+pub struct UnknownPinMethod {
+    /// The name that was given.
+    pub name: String,
+}
+
+impl FromStr for PinMethod {
+    type Err = UnknownPinMethod;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "reduction" => Ok(PinMethod::Reduction),
+            "counter-force" | "counter-forces" => Ok(PinMethod::CounterForce),
+            other => Err(UnknownPinMethod {
+                name: other.to_string(),
+            }),
+        }
+    }
+}
+
 /// Settings of the linearised integrator ([`Integrator::Linearized`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LinearizedParams {
@@ -261,6 +323,9 @@ pub struct Settings {
     /// [`parse_energy_limit`]); a factor that is negative or not finite is refused by
     /// [`Settings::set_energy_limit`] and by [`crate::Simulation::new`].
     pub energy_limit: Option<f64>,
+    /// How the implicit integrators hold pinned vertices (default: [`PinMethod::Reduction`]). Set
+    /// from text by `hooke run --pin-method` and the scene file key `integrator.pin_method`.
+    pub pins: PinMethod,
     /// The linearised integrator's settings (default: β = 1, CG to 1e-8).
     pub linearized: LinearizedParams,
     /// Newton's settings (default: relative gradient 1e-8).
@@ -277,6 +342,7 @@ impl Default for Settings {
             allow_unstable: false,
             parallel: true,
             energy_limit: Some(1.0),
+            pins: PinMethod::Reduction,
             linearized: LinearizedParams::default(),
             newton: hooke_solvers::NewtonParams::default(),
             pd: hooke_solvers::PdParams::default(),
@@ -445,6 +511,15 @@ mod tests {
         for s in LinearSolver::ALL {
             assert_eq!(s.name().parse::<LinearSolver>().unwrap(), *s);
         }
+        for p in PinMethod::ALL {
+            assert_eq!(p.name().parse::<PinMethod>().unwrap(), *p);
+        }
+        assert_eq!(PinMethod::default(), PinMethod::Reduction);
+        let err = "penalty".parse::<PinMethod>().unwrap_err().to_string();
+        assert!(
+            err.contains("\"penalty\"") && err.contains("counter-force"),
+            "{err}"
+        );
         assert!("rk4".parse::<Integrator>().is_err());
         assert!("gmres".parse::<LinearSolver>().is_err());
     }

@@ -42,7 +42,8 @@ pub use damping::Damping;
 pub use error::SimError;
 pub use forces::ExternalForce;
 pub use integrator::{
-    parse_energy_limit, Integrator, LinearSolver, LinearizedParams, Settings, SolverOptions,
+    parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, Settings,
+    SolverOptions, UnknownPinMethod,
 };
 pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Scene, State};
 pub use simulation::{Simulation, StepReport, MAX_AUTO_SUBSTEPS};

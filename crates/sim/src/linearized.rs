@@ -38,13 +38,22 @@
 //! - pins: removed from the unknowns; a pinned vertex moves to its prescribed position at the end
 //!   of the step with velocity (x_pin(t + h) − x)/h, and that known velocity enters the free rows'
 //!   right-hand side through the coupling blocks (β h² H_s + h c_d r̂r̂ᵀ) v_pin of the springs to it.
+//!   With [`PinMethod::CounterForce`] every vertex keeps its D unknowns instead: the matrix is
+//!   assembled on all vertices and [`CounterForce::apply_to_matrix`] replaces the pinned rows and
+//!   columns by m_p I (the diagonal above), the counter-force cancelling the force on the pinned
+//!   vertex together with its Jacobian. The pinned unknowns are the velocity change relative to the
+//!   prescribed v_pin, zero: their right-hand side and initial guess are zero, so Jacobi and CG never
+//!   move them (zero residual in a decoupled row), and the known v_pin enters the free rows as
+//!   above (the zeroed columns carried it). The free rows are the reduced system's, solved with the
+//!   pinned entries as extra zeros; the step equals the reduction's up to round-off.
 //!
 //! Damping and wind are thus treated by backward Euler in v whatever β (β scales only the position
 //! linearisation), which makes them unconditionally stable.
 
 use hooke_assembly::spring::{dashpot_velocity_block, hessian_block};
 use hooke_assembly::{
-    Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace, SpringForces,
+    CounterForce, Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace,
+    SpringForces,
 };
 use hooke_solvers::{
     BlockJacobi, CgParams, ConjugateGradient, Jacobi, JacobiParams, Report, SolveError,
@@ -53,7 +62,7 @@ use hooke_solvers::{
 use nalgebra::{SMatrix, SVector};
 
 use crate::forces::ExternalForce;
-use crate::integrator::{LinearSolver, LinearizedParams};
+use crate::integrator::{LinearSolver, LinearizedParams, PinMethod};
 use crate::{Scene, SimError};
 
 /// What one linearised step did.
@@ -70,6 +79,8 @@ pub(crate) struct Linearized<const D: usize> {
     params: LinearizedParams,
     free: FreeDofs,
     pattern: HessianPattern<D>,
+    /// Pins by counter-force: every vertex has unknowns, the pinned rows and columns replaced.
+    counter: Option<CounterForce<D>>,
     workspace: HessianWorkspace<D>,
     values: Vec<f64>,
     /// Per vertex (full numbering): m (1 + β h² s), s the attractor strength.
@@ -78,7 +89,8 @@ pub(crate) struct Linearized<const D: usize> {
     damping_diagonal: Vec<f64>,
     /// Dashpot coefficient c_d (N·s/m).
     dashpot: f64,
-    /// Per free vertex, D·D value indices of its diagonal block, entry (a, b) at a + D b.
+    /// Per vertex with unknowns (free vertices, or all with counter-forces), D·D value indices of
+    /// its diagonal block, entry (a, b) at a + D b.
     diagonal_slots: Vec<usize>,
     forces: SpringForces<D>,
     force: Vec<SVector<f64, D>>,
@@ -98,13 +110,31 @@ pub(crate) struct Linearized<const D: usize> {
 }
 
 impl<const D: usize> Linearized<D> {
-    pub(crate) fn new(scene: &Scene<D>, params: LinearizedParams) -> Result<Self, SimError> {
+    /// The integrator for `scene` with `params`, pins held by `pins`.
+    pub(crate) fn new(
+        scene: &Scene<D>,
+        params: LinearizedParams,
+        pins: PinMethod,
+    ) -> Result<Self, SimError> {
         params.validate()?;
         let mesh = scene.mesh();
         let n = mesh.vertex_count();
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
-        let pattern = HessianPattern::new(n, mesh.springs(), Some(&free));
+        let (pattern, counter) = match pins {
+            PinMethod::Reduction => (HessianPattern::new(n, mesh.springs(), Some(&free)), None),
+            PinMethod::CounterForce => {
+                let pattern = HessianPattern::new(n, mesh.springs(), None);
+                let counter = CounterForce::new(&pattern, &free);
+                (pattern, Some(counter))
+            }
+        };
+        // Vertices with unknowns: vertex v's at D·v with counter-forces, free vertex f's at D·f.
+        let unknown_vertices = if counter.is_some() {
+            n
+        } else {
+            free.free_count()
+        };
         let h = scene.time_step();
         let mut attractor = 0.0;
         let mut wind_coefficient = 0.0;
@@ -128,8 +158,8 @@ impl<const D: usize> Linearized<D> {
             Vec::new()
         };
         let symbolic = pattern.symbolic();
-        let mut diagonal_slots = Vec::with_capacity(D * D * free.free_count());
-        for f in 0..free.free_count() {
+        let mut diagonal_slots = Vec::with_capacity(D * D * unknown_vertices);
+        for f in 0..unknown_vertices {
             for b in 0..D {
                 let column = D * f + b;
                 let start = symbolic.col_ptr()[column];
@@ -152,7 +182,7 @@ impl<const D: usize> Linearized<D> {
             .filter(|(_, s)| is_pinned[s.i as usize] != is_pinned[s.j as usize])
             .map(|(k, _)| k as u32)
             .collect();
-        let dim = D * free.free_count();
+        let dim = D * unknown_vertices;
         Ok(Linearized {
             workspace: pattern.workspace(),
             values: pattern.new_values(),
@@ -167,7 +197,7 @@ impl<const D: usize> Linearized<D> {
             pin_velocity: vec![SVector::zeros(); n],
             boundary,
             wind_coefficient,
-            preconditioner: BlockJacobi::identity(free.free_count()),
+            preconditioner: BlockJacobi::identity(unknown_vertices),
             cg: ConjugateGradient::new(CgParams {
                 tolerance: params.tolerance,
                 max_iterations: params.max_iterations,
@@ -180,7 +210,14 @@ impl<const D: usize> Linearized<D> {
             params,
             free,
             pattern,
+            counter,
         })
+    }
+
+    /// The first unknown of vertex `v`, free vertex number `f`.
+    #[inline]
+    fn offset(&self, f: usize, v: usize) -> usize {
+        D * if self.counter.is_some() { v } else { f }
     }
 
     /// One step from `positions`, `velocities` (updated in place); pinned vertices end at
@@ -228,7 +265,8 @@ impl<const D: usize> Linearized<D> {
         let drag = (-h * scene.damping().drag).exp();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
-            let vel = SVector::<f64, D>::from_column_slice(&self.unknowns[D * f..D * f + D]) * drag;
+            let o = self.offset(f, v);
+            let vel = SVector::<f64, D>::from_column_slice(&self.unknowns[o..o + D]) * drag;
             velocities[v] = vel;
             positions[v] += vel * h;
         }
@@ -282,8 +320,19 @@ impl<const D: usize> Linearized<D> {
                 &mut self.values,
             );
         }
+        if let Some(counter) = &self.counter {
+            // Pinned rows and columns: the diagonal's m_p I, zero elsewhere. Their unknowns (the
+            // velocity change from the prescribed one) and right-hand side are zero.
+            counter.apply_to_matrix(&self.diagonal, &mut self.values);
+            for &p in self.free.pinned() {
+                let o = D * p as usize;
+                self.rhs[o..o + D].fill(0.0);
+                self.unknowns[o..o + D].fill(0.0);
+            }
+        }
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
+            let o = self.offset(f, v);
             let (m, x, vel) = (masses[v], &positions[v], &velocities[v]);
             // External forces at (x, v), with wind's −c v moved into the matrix.
             let mut external = SVector::<f64, D>::zeros();
@@ -291,8 +340,8 @@ impl<const D: usize> Linearized<D> {
                 external = forces.force(m, x, vel) + vel * self.wind_coefficient;
             }
             let b = vel * m + (self.force[v] + external) * h;
-            self.rhs[D * f..D * f + D].copy_from_slice(b.as_slice());
-            self.unknowns[D * f..D * f + D].copy_from_slice(vel.as_slice());
+            self.rhs[o..o + D].copy_from_slice(b.as_slice());
+            self.unknowns[o..o + D].copy_from_slice(vel.as_slice());
         }
         // Known velocities of moving pins: −A_ij v_j to the free row i.
         let dashpot = self.dashpot;
@@ -321,9 +370,10 @@ impl<const D: usize> Linearized<D> {
                 .free
                 .free_index(free_end)
                 .expect("one end of a boundary spring is free");
+            let o = self.offset(f, free_end);
             let add = coupling * vp;
             for a in 0..D {
-                self.rhs[D * f + a] += add[a];
+                self.rhs[o + a] += add[a];
             }
         }
     }
@@ -331,7 +381,7 @@ impl<const D: usize> Linearized<D> {
     fn solve(&mut self) -> Result<Report, SolveError> {
         let values = &self.values;
         let slots = &self.diagonal_slots;
-        let blocks = (0..self.free.free_count())
+        let blocks = (0..slots.len() / (D * D))
             .map(|f| SMatrix::<f64, D, D>::from_fn(|a, b| values[slots[D * D * f + a + D * b]]));
         self.preconditioner.refill(blocks)?;
         let a = Symmetric(self.pattern.matrix(values));
@@ -344,6 +394,51 @@ impl<const D: usize> Linearized<D> {
                 self.jacobi
                     .solve(&a, &self.preconditioner, &self.rhs, &mut self.unknowns)
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Pins;
+    use hooke_mesh::generators;
+
+    /// With counter-forces every vertex has unknowns, and the pinned ones (the velocity change from
+    /// the prescribed velocity) stay exactly zero through the solve.
+    #[test]
+    fn counter_forces_keep_every_vertex_an_unknown_and_the_pinned_ones_at_zero() {
+        let mesh = generators::cloth(6, 1e3).unwrap();
+        let n = mesh.vertex_count();
+        let scene = Scene::new(mesh, 1.0 / 30.0)
+            .unwrap()
+            .with_pins(Pins::Vertices(vec![0, 5]))
+            .unwrap();
+        let mut positions = scene.initial_state().positions;
+        // A deformed start, so that every free velocity changes.
+        for (v, x) in positions.iter_mut().enumerate() {
+            x.y += 0.01 * (v as f64).sin();
+        }
+        let velocities = vec![SVector::zeros(); n];
+        let next_pinned = positions.clone();
+        for (pins, dim) in [
+            (PinMethod::Reduction, 3 * (n - 2)),
+            (PinMethod::CounterForce, 3 * n),
+        ] {
+            let mut integrator =
+                Linearized::<3>::new(&scene, LinearizedParams::default(), pins).unwrap();
+            assert_eq!(integrator.unknowns.len(), dim, "{pins}");
+            let (mut x, mut v) = (positions.clone(), velocities.clone());
+            integrator
+                .step(&scene, &mut x, &mut v, &next_pinned, 1, false)
+                .unwrap();
+            if pins == PinMethod::CounterForce {
+                for p in [0, 5] {
+                    assert_eq!(&integrator.unknowns[3 * p..3 * p + 3], &[0.0; 3]);
+                    assert_eq!(x[p], positions[p]);
+                }
+            }
+            assert!(v.iter().any(|v| v.norm() > 1e-3), "{pins}: the cloth moves");
         }
     }
 }

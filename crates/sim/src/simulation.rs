@@ -129,12 +129,22 @@ impl<const D: usize> Simulation<D> {
             1
         };
         let implicit = match settings.integrator {
-            Integrator::Newton => Some(BackwardEuler::newton(&scene, settings.newton)?),
-            Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(&scene, settings.pd)?),
+            Integrator::Newton => Some(BackwardEuler::newton(
+                &scene,
+                settings.newton,
+                settings.pins,
+            )?),
+            Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(
+                &scene,
+                settings.pd,
+                settings.pins,
+            )?),
             _ => None,
         };
         let linearized = match settings.integrator {
-            Integrator::Linearized => Some(Linearized::new(&scene, settings.linearized)?),
+            Integrator::Linearized => {
+                Some(Linearized::new(&scene, settings.linearized, settings.pins)?)
+            }
             _ => None,
         };
         let projection = if !scene.contacts().is_empty() && !settings.integrator.is_explicit() {

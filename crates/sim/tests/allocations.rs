@@ -11,7 +11,9 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hooke_mesh::generators;
-use hooke_sim::{ExternalForce, Integrator, LinearSolver, Pins, Scene, Settings, Simulation};
+use hooke_sim::{
+    ExternalForce, Integrator, LinearSolver, PinMethod, Pins, Scene, Settings, Simulation,
+};
 use nalgebra::Vector3;
 
 struct Counting;
@@ -72,9 +74,15 @@ fn steps_allocate_only_the_solver_report() {
             acceleration: Vector3::new(0.0, -9.81, 0.0),
         }])
         .unwrap();
-    for solver in [LinearSolver::Jacobi, LinearSolver::ConjugateGradient] {
+    for (solver, pins) in [
+        (LinearSolver::Jacobi, PinMethod::Reduction),
+        (LinearSolver::ConjugateGradient, PinMethod::Reduction),
+        (LinearSolver::Jacobi, PinMethod::CounterForce),
+        (LinearSolver::ConjugateGradient, PinMethod::CounterForce),
+    ] {
         let mut settings = Settings {
             integrator: Integrator::Linearized,
+            pins,
             // Serial: rayon's pool would allocate on its own schedule.
             parallel: false,
             ..Settings::default()
@@ -87,30 +95,35 @@ fn steps_allocate_only_the_solver_report() {
             let mut report = None;
             let count = allocations(|| report = Some(sim.step().unwrap()));
             let report = report.unwrap();
-            assert!(!report.clamped_hessian, "{solver} step {step}: clamped");
+            assert!(
+                !report.clamped_hessian,
+                "{solver}, {pins}, step {step}: clamped"
+            );
             let summary = report
                 .solver
                 .expect("the linearised step reports its solve");
             iterations.push(summary.iterations);
             assert_eq!(
                 count, 1,
-                "{solver} step {step}: {count} allocations (expected 1, the solve's report), \
-                 {} iterations",
+                "{solver}, {pins}, step {step}: {count} allocations (expected 1, the solve's \
+                 report), {} iterations",
                 summary.iterations
             );
         }
         assert!(
             iterations.iter().all(|&i| i > 1) && iterations.iter().any(|&i| i != iterations[0]),
-            "{solver}: the steps should iterate, by varying counts: {iterations:?}"
+            "{solver}, {pins}: the steps should iterate, by varying counts: {iterations:?}"
         );
     }
-    for (integrator, expected) in [
-        (Integrator::Newton, 1),
-        (Integrator::ProjectiveDynamics, 1),
-        (Integrator::SymplecticEuler, 0),
+    for (integrator, pins, expected) in [
+        (Integrator::Newton, PinMethod::Reduction, 1),
+        (Integrator::Newton, PinMethod::CounterForce, 1),
+        (Integrator::ProjectiveDynamics, PinMethod::Reduction, 1),
+        (Integrator::SymplecticEuler, PinMethod::Reduction, 0),
     ] {
         let settings = Settings {
             integrator,
+            pins,
             parallel: false,
             ..Settings::default()
         };
@@ -122,7 +135,7 @@ fn steps_allocate_only_the_solver_report() {
             });
             assert_eq!(
                 count, expected,
-                "{integrator} step {step}: {count} allocations, expected {expected}"
+                "{integrator}, {pins}, step {step}: {count} allocations, expected {expected}"
             );
         }
     }
