@@ -12,7 +12,7 @@ use hooke::mesh::MeshError;
 use hooke::sim::file::{load_scene, FrameFormat, SceneFileError};
 use hooke::sim::scenes::{self, AnySetup, Setup};
 use hooke::sim::{
-    parse_energy_limit, Integrator, LinearSolver, SimError, Simulation, SolverOptions,
+    parse_energy_limit, Integrator, LinearSolver, PinMethod, SimError, Simulation, SolverOptions,
 };
 use hooke::solvers::StopReason;
 use nalgebra::SVector;
@@ -92,6 +92,12 @@ struct RunArgs {
     /// checked for scenes with wind or moving pins, nor with --force.
     #[arg(long, value_name = "FACTOR|off", allow_negative_numbers = true)]
     energy_limit: Option<String>,
+    /// How the implicit integrators hold pinned vertices: reduction (pinned DOFs removed from the
+    /// unknowns; default) or counter-force (every DOF kept, the force on a pinned vertex cancelled
+    /// with its Jacobian). Both give the same steps up to round-off; pd supports only reduction.
+    /// Default: the scene file's, else reduction.
+    #[arg(long, value_name = "reduction|counter-force")]
+    pin_method: Option<String>,
     /// Output directory.
     #[arg(long, default_value = "out")]
     out: PathBuf,
@@ -246,6 +252,12 @@ fn run_setup<const D: usize>(
                 reason: e.to_string(),
             })?;
     }
+    if let Some(name) = &args.pin_method {
+        setup.settings.pins = name.parse::<PinMethod>().map_err(|e| CliError::Argument {
+            name: "pin-method",
+            reason: e.to_string(),
+        })?;
+    }
     if let Some(dt) = args.dt {
         setup.scene = setup.scene.with_time_step(dt)?;
     }
@@ -323,6 +335,7 @@ fn run_setup<const D: usize>(
                 tolerance: o.tolerance,
             })
         },
+        pin_method: Some(settings.pins.name().into()),
         steps: Vec::with_capacity(steps + 1),
     };
     let record = |step: usize, sim: &Simulation<D>, report: Option<hooke::sim::StepReport>| {

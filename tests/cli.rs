@@ -502,10 +502,108 @@ fn run_help_lists_every_integrator_and_solver_flag() {
         "--iterations",
         "--tolerance",
         "--energy-limit",
+        "--pin-method",
+        "counter-force",
     ] {
         assert!(
             text.contains(word),
             "`hooke run --help` mentions {word}:\n{text}"
         );
     }
+}
+
+#[test]
+fn the_pin_method_flag_and_key_choose_how_pins_are_held() {
+    // cloth-10 (corners pinned) by Newton, 3 frames, with each pin method: both runs finish, the
+    // summary records the method, and the runs agree to round-off (the two methods solve the same
+    // system for the free vertices; tests/pin_methods.rs bounds the position difference at 1e-10
+    // of the motion; here the summaries' total energies are compared).
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let out_dir = dir.path().join(extra.join("_").replace('-', ""));
+        let out_dir = out_dir.to_str().unwrap().to_string();
+        let mut args = vec![
+            "run", "cloth-10", "--steps", "3", "--out", &out_dir, "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let out = hooke(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!stderr.contains("panicked"), "{extra:?} panicked: {stderr}");
+        let summary = std::fs::read_to_string(Path::new(&out_dir).join("summary.json"))
+            .ok()
+            .map(|text| serde_json::from_str::<serde_json::Value>(&text).unwrap());
+        (out.status.success(), stderr, summary)
+    };
+    let (ok, stderr, default) = run(&["--integrator", "newton"]);
+    assert!(ok, "{stderr}");
+    let default = default.unwrap();
+    assert_eq!(default["pin_method"], "reduction", "the default");
+    let (ok, stderr, counter) = run(&["--integrator", "newton", "--pin-method", "counter-force"]);
+    assert!(ok, "{stderr}");
+    let counter = counter.unwrap();
+    assert_eq!(counter["pin_method"], "counter-force");
+    for step in 1..=3 {
+        let [a, b] =
+            [&default, &counter].map(|s| s["steps"][step]["total_energy"].as_f64().unwrap());
+        // Energies of order 1 J; round-off-level trajectories give round-off-level energies.
+        assert!(
+            (a - b).abs() <= 1e-9 * a.abs().max(1.0),
+            "step {step}: {a} J vs {b} J"
+        );
+    }
+    // Bad values name the flag and the choices; pd refuses counter-forces.
+    for (extra, expected) in [
+        (
+            &["--integrator", "newton", "--pin-method", "penalty"][..],
+            "invalid --pin-method: unknown pin method \"penalty\"",
+        ),
+        (
+            &["--integrator", "newton", "--pin-method", ""][..],
+            "expected \"reduction\" or \"counter-force\"",
+        ),
+        (
+            &["--pin-method", "counter-force", "--integrator", "pd"][..],
+            "does not support pins by counter-force",
+        ),
+    ] {
+        let (ok, stderr, _) = run(extra);
+        assert!(!ok, "{extra:?} should fail");
+        assert!(
+            stderr.contains(expected),
+            "{extra:?}: expected {expected:?} in {stderr}"
+        );
+    }
+    // The scene file's key, and the flag overriding it.
+    let scene = dir.path().join("pins.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[mesh]
+generator = "cloth"
+n = 10
+stiffness = 1000.0
+[pins]
+vertices = [0, 9]
+[integrator]
+method = "newton"
+time_step = 0.03333333333333333
+pin_method = "counter-force"
+[run]
+steps = 1
+"#,
+    )
+    .unwrap();
+    let scene = scene.to_str().unwrap();
+    let from_file = |extra: &[&str]| {
+        let out_dir = dir.path().join("file");
+        let mut args = vec!["run", scene, "--out", out_dir.to_str().unwrap(), "--quiet"];
+        args.extend_from_slice(extra);
+        let out = hooke(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{extra:?}: {stderr}");
+        let text = std::fs::read_to_string(out_dir.join("summary.json")).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()["pin_method"].clone()
+    };
+    assert_eq!(from_file(&[]), "counter-force");
+    assert_eq!(from_file(&["--pin-method", "reduction"]), "reduction");
 }

@@ -34,6 +34,10 @@ pub struct RunSummary {
     /// The settings of the integrator's solver (absent for explicit integrators and in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solver_settings: Option<SolverSettingsRecord>,
+    /// How the implicit integrators held the pinned vertices: `reduction` or `counter-force`
+    /// (absent in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pin_method: Option<String>,
     /// One record per step, in order.
     pub steps: Vec<StepRecord>,
 }
@@ -160,6 +164,7 @@ mod tests {
                 tolerance: Some(1e-8),
                 ..Default::default()
             }),
+            pin_method: Some("counter-force".into()),
             steps: vec![
                 StepRecord {
                     step: 1,

@@ -46,6 +46,7 @@
 //! # linear_solver = "cg"   # linearized: "cg" or "jacobi"
 //! # iterations = 1000      # linearized: linear solver limit; newton: iteration limit; pd: iterations
 //! # tolerance = 1e-8       # linearized: relative residual; newton: relative gradient; pd: change
+//! # pin_method = "reduction"  # or "counter-force" (linearized, newton; pd refuses it)
 //!
 //! [run]
 //! steps = 30
@@ -67,7 +68,9 @@ use serde::Deserialize;
 use crate::contact::{Contact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
-use crate::integrator::{parse_energy_limit, Integrator, LinearSolver, Settings, SolverOptions};
+use crate::integrator::{
+    parse_energy_limit, Integrator, LinearSolver, PinMethod, Settings, SolverOptions,
+};
 use crate::scene::{Keyframe, PinPath, Pins, Scene};
 use crate::scenes::{AnySetup, Setup};
 use crate::SimError;
@@ -281,6 +284,7 @@ struct IntegratorSection {
     iterations: Option<usize>,
     tolerance: Option<f64>,
     energy_limit: Option<EnergyLimitValue>,
+    pin_method: Option<String>,
 }
 
 /// `integrator.energy_limit`: a factor, or "off".
@@ -655,6 +659,11 @@ impl Context<'_> {
                 .and_then(|limit| settings.set_energy_limit(limit))
                 .map_err(|e| self.invalid("integrator.energy_limit", e))?;
         }
+        if let Some(name) = &i.pin_method {
+            settings.pins = name
+                .parse::<PinMethod>()
+                .map_err(|e| self.invalid("integrator.pin_method", e))?;
+        }
         let linear_solver = match &i.linear_solver {
             Some(name) => Some(
                 name.parse::<LinearSolver>()
@@ -816,6 +825,40 @@ tolerance = 1e-9
                     assert!(reason.contains("energy limit"), "{bad}: {reason}");
                 }
                 other => panic!("energy_limit = {bad}: expected Invalid, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn the_pin_method_key_sets_the_method_and_bad_values_name_the_key() {
+        let integrator = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";
+        let method = |value: &str| {
+            parse(&format!("{integrator}pin_method = {value}\n")).map(|s| s.settings.pins)
+        };
+        assert_eq!(
+            parse(integrator).unwrap().settings.pins,
+            PinMethod::Reduction,
+            "absent: the default"
+        );
+        assert_eq!(method("\"reduction\"").unwrap(), PinMethod::Reduction);
+        assert_eq!(
+            method("\"counter-force\"").unwrap(),
+            PinMethod::CounterForce
+        );
+        for bad in ["\"penalty\"", "\"\"", "1", "true"] {
+            let err = method(bad).unwrap_err();
+            let text = err.to_string();
+            assert!(text.contains("test.toml"), "{bad}: {text}");
+            match err {
+                SceneFileError::Invalid { key, reason, .. } => {
+                    assert_eq!(key, "integrator.pin_method", "{bad}");
+                    assert!(reason.contains("counter-force"), "{bad}: {reason}");
+                }
+                // A value of the wrong TOML type is a type error naming the key.
+                other => assert!(
+                    (bad == "1" || bad == "true") && text.contains("pin_method"),
+                    "pin_method = {bad}: expected Invalid, got {other:?}"
+                ),
             }
         }
     }
