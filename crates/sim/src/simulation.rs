@@ -287,11 +287,21 @@ impl<const D: usize> Simulation<D> {
         let h = self.scene.time_step();
         if let Some(implicit) = &mut self.implicit {
             let state = &mut self.state;
+            // Where the moving pins are `offset` seconds after the frame's start, for a step that
+            // Newton halves (pins that do not move stay where they are).
+            let (paths, moving) = (self.scene.pin_paths(), &self.moving);
+            let frame_start = self.start_time + self.steps_taken as f64 * h;
+            let pins_at = |offset: f64, targets: &mut [SVector<f64, D>]| {
+                for &(v, path, anchor) in moving {
+                    targets[v] = anchor + paths[path].path.offset(frame_start + offset);
+                }
+            };
             let outcome = implicit.step(
                 &self.scene,
                 &mut state.positions,
                 &mut state.velocities,
                 &self.next_pinned,
+                &pins_at,
             );
             self.scene.restore_contacts(contacts);
             solver = Some(outcome?);
