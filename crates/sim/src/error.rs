@@ -73,12 +73,13 @@ pub enum SimError {
         /// The limit it crossed.
         limit: f64,
     },
-    /// The integrator cannot model a term the scene asks for (yet); running without it would be wrong.
-    #[error("the {integrator} integrator does not support {what} yet; use symplectic-euler for this scene")]
+    /// The integrator cannot model a term the scene asks for; running without it would be wrong.
+    /// `what` names the term, why, and what to use instead.
+    #[error("the {integrator} integrator does not support {what}")]
     Unsupported {
         /// The integrator.
         integrator: String,
-        /// The scene term.
+        /// The scene term, why it is not supported, and what to use instead.
         what: String,
     },
     /// The implicit solver failed (the message carries its report).
