@@ -23,7 +23,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, Symbolic
 use hooke_mesh::Spring;
 use std::ops::Range;
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 use crate::forces::PARALLEL_THRESHOLD;
 use crate::graph::{block_pattern, matrix_owned, matrix_ref, BlockGraph, Contribution};
@@ -332,6 +332,32 @@ impl<const D: usize> HessianPattern<D> {
         };
         let parallel = springs.len() >= PARALLEL_THRESHOLD;
         graph.for_each_column::<D, _>(values, parallel, &fill);
+    }
+
+    /// The D×D diagonal block of every free vertex, in free-vertex order, read from `values` (this
+    /// pattern's value array): what a block-Jacobi preconditioner inverts. No allocation.
+    ///
+    /// # Panics
+    /// If `values` does not have one entry per stored entry.
+    #[track_caller]
+    pub fn diagonal_blocks<'a>(
+        &'a self,
+        values: &'a [f64],
+    ) -> impl ExactSizeIterator<Item = SMatrix<f64, D, D>> + 'a {
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "diagonal_blocks: one value per stored entry"
+        );
+        let graph = &self.graph;
+        (0..graph.columns()).map(move |column| {
+            // Block column `column` holds D scalar columns of `column_len` values each, from
+            // D² × (its first block); the diagonal block starts D × its slot down each of them.
+            let blocks = graph.column_blocks(column);
+            let column_len = D * blocks.len();
+            let at = D * D * blocks.start + D * graph.diagonal_slot(column);
+            SMatrix::from_fn(|a, b| values[at + b * column_len + a])
+        })
     }
 
     /// Add `per_vertex[v]` · I_D to the diagonal block of every free vertex v (`per_vertex` is
@@ -870,6 +896,18 @@ mod tests {
         #[test]
         fn random_mesh_hessians_match_finite_differences((mesh, x, pinned) in mesh_state_pins()) {
             check_against_finite_differences(&mesh, &x, &pinned, 0.02);
+        }
+
+        #[test]
+        fn diagonal_blocks_are_the_matrix_diagonal_blocks((mesh, x, pinned) in mesh_state_pins()) {
+            let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+            let (pattern, values) = assemble(&mesh, &x, Some(&free), mesh.masses(), 0.05, Definiteness::Exact);
+            let matrix = dense(pattern.matrix(&values));
+            let blocks = pattern.diagonal_blocks(&values);
+            prop_assert_eq!(blocks.len(), free.free_count());
+            for (f, block) in blocks.enumerate() {
+                prop_assert_eq!(block, matrix.fixed_view::<3, 3>(3 * f, 3 * f).into_owned());
+            }
         }
 
         #[test]

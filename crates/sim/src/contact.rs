@@ -39,7 +39,7 @@ use hooke_assembly::{Definiteness, FreeDofs, HessianParams, HessianPattern, Hess
 use hooke_solvers::{
     BlockJacobi, CgParams, ConjugateGradient, LinearOperator, Preconditioner, SolveError, Symmetric,
 };
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 
 use crate::error::{finite_vector, non_negative, positive, SimError};
 use crate::Scene;
@@ -221,8 +221,6 @@ pub(crate) struct StepProjection<const D: usize> {
     pattern: HessianPattern<D>,
     workspace: HessianWorkspace<D>,
     values: Vec<f64>,
-    /// Per free vertex, D·D value indices of its diagonal block, entry (a, b) at a + D b.
-    diagonal_slots: Vec<usize>,
     blocks: BlockJacobi<D>,
     cg: ConjugateGradient,
     /// Per free vertex: the contact normal if it is in contact (its normal displacement is
@@ -309,28 +307,11 @@ impl<const D: usize> StepProjection<D> {
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
         let pattern = HessianPattern::new(n, mesh.springs(), Some(&free));
-        let symbolic = pattern.symbolic();
         let count = free.free_count();
-        let mut diagonal_slots = Vec::with_capacity(D * D * count);
-        for f in 0..count {
-            for b in 0..D {
-                let column = D * f + b;
-                let start = symbolic.col_ptr()[column];
-                let rows = symbolic.row_idx_of_col_raw(column);
-                let first = rows
-                    .iter()
-                    .position(|&r| r == D * f)
-                    .expect("the pattern stores every diagonal block");
-                for a in 0..D {
-                    diagonal_slots.push(start + first + a);
-                }
-            }
-        }
         let dim = D * count;
         Ok(StepProjection {
             workspace: pattern.workspace(),
             values: pattern.new_values(),
-            diagonal_slots,
             blocks: BlockJacobi::identity(count),
             cg: ConjugateGradient::new(CgParams {
                 tolerance: PROJECTION_TOLERANCE,
@@ -389,12 +370,8 @@ impl<const D: usize> StepProjection<D> {
             &mut self.workspace,
             &mut self.values,
         );
-        let values = &self.values;
-        let slots = &self.diagonal_slots;
         self.blocks
-            .refill((0..self.free.free_count()).map(|f| {
-                SMatrix::<f64, D, D>::from_fn(|a, b| values[slots[D * D * f + a + D * b]])
-            }))
+            .refill(self.pattern.diagonal_blocks(&self.values))
             .map_err(|e| SimError::Solver {
                 message: format!("contact projection: {e}"),
             })?;

@@ -89,9 +89,6 @@ pub(crate) struct Linearized<const D: usize> {
     damping_diagonal: Vec<f64>,
     /// Dashpot coefficient c_d (N·s/m).
     dashpot: f64,
-    /// Per vertex with unknowns (free vertices, or all with counter-forces), D·D value indices of
-    /// its diagonal block, entry (a, b) at a + D b.
-    diagonal_slots: Vec<usize>,
     forces: SpringForces<D>,
     force: Vec<SVector<f64, D>>,
     rhs: Vec<f64>,
@@ -157,23 +154,6 @@ impl<const D: usize> Linearized<D> {
         } else {
             Vec::new()
         };
-        let symbolic = pattern.symbolic();
-        let mut diagonal_slots = Vec::with_capacity(D * D * unknown_vertices);
-        for f in 0..unknown_vertices {
-            for b in 0..D {
-                let column = D * f + b;
-                let start = symbolic.col_ptr()[column];
-                let rows = symbolic.row_idx_of_col_raw(column);
-                let first = rows
-                    .iter()
-                    .position(|&r| r == D * f)
-                    .expect("the pattern stores every diagonal block");
-                for a in 0..D {
-                    debug_assert_eq!(rows[first + a], D * f + a);
-                    diagonal_slots.push(start + first + a);
-                }
-            }
-        }
         let is_pinned = scene.is_pinned();
         let boundary = mesh
             .springs()
@@ -189,7 +169,6 @@ impl<const D: usize> Linearized<D> {
             diagonal,
             damping_diagonal,
             dashpot: damping.dashpot,
-            diagonal_slots,
             forces: SpringForces::new(n, mesh.springs()),
             force: vec![SVector::zeros(); n],
             rhs: vec![0.0; dim],
@@ -380,10 +359,8 @@ impl<const D: usize> Linearized<D> {
 
     fn solve(&mut self) -> Result<Report, SolveError> {
         let values = &self.values;
-        let slots = &self.diagonal_slots;
-        let blocks = (0..slots.len() / (D * D))
-            .map(|f| SMatrix::<f64, D, D>::from_fn(|a, b| values[slots[D * D * f + a + D * b]]));
-        self.preconditioner.refill(blocks)?;
+        self.preconditioner
+            .refill(self.pattern.diagonal_blocks(values))?;
         let a = Symmetric(self.pattern.matrix(values));
         match self.params.solver {
             LinearSolver::ConjugateGradient => {
