@@ -8,11 +8,15 @@
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
 //! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k); `HOOKE_DEFINITENESS=clamped`
-//! factors the clamped Hessian in every iteration.
+//! factors the clamped Hessian in every iteration. `HOOKE_EIG=1` prints the inertia of the Hessian
+//! at the last step's solution and its smallest generalised eigenvalues λ (H v = λ M v, in units of
+//! the masses), by inverse iteration.
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
-use hooke_solvers::{BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem};
+use hooke_solvers::{
+    BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem, SparseCholesky,
+};
 use nalgebra::Vector3;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -121,11 +125,64 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
+        if s + 1 == steps && std::env::var("HOOKE_EIG").is_ok() {
+            smallest_eigenvalues(&mut step, &unknowns, 4)?;
+        }
         let next = step.positions(&unknowns).to_vec();
         for i in 0..x.len() {
             v[i] = (next[i] - x[i]) / h;
         }
         x = next;
+    }
+    Ok(())
+}
+
+/// Print the inertia of H at `x` and its `count` smallest generalised eigenvalues H v = λ M v (M the
+/// shift diagonal, the masses), by inverse iteration with M-orthogonal deflation (200 iterations
+/// each; enough to show their size, not to resolve clusters).
+fn smallest_eigenvalues(
+    step: &mut BackwardEulerStep<3>,
+    x: &[f64],
+    count: usize,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut cholesky = SparseCholesky::analyze(step.pattern(), Default::default())?;
+    let values = step.hessian(x).val().to_vec();
+    let inertia =
+        cholesky.factorize_ldlt(faer::sparse::SparseColMatRef::new(step.pattern(), &values))?;
+    println!("  inertia at the solution: {inertia:?}");
+    let mass = step.shift_diagonal().to_vec();
+    let m_dot = |a: &[f64], b: &[f64]| -> f64 {
+        a.iter()
+            .zip(b)
+            .zip(&mass)
+            .map(|((a, b), m)| a * b * m)
+            .sum()
+    };
+    let mut found: Vec<Vec<f64>> = Vec::new();
+    for _ in 0..count {
+        // A fixed, non-smooth start, so that no low mode is missing from it.
+        let mut v: Vec<f64> = (0..mass.len())
+            .map(|i| (i * 7919 % 1000) as f64 / 1000.0 - 0.5)
+            .collect();
+        let mut lambda = 0.0;
+        for _ in 0..200 {
+            for u in &found {
+                let c = m_dot(u, &v);
+                v.iter_mut().zip(u).for_each(|(a, b)| *a -= c * b);
+            }
+            let norm = m_dot(&v, &v).sqrt();
+            v.iter_mut().for_each(|a| *a /= norm);
+            // w = H⁻¹ M v; vᵀ M w → 1/λ.
+            let mut w: Vec<f64> = v.iter().zip(&mass).map(|(a, m)| a * m).collect();
+            cholesky.solve_slice(&mut w);
+            lambda = 1.0 / m_dot(&v, &w);
+            v = w;
+        }
+        let norm = m_dot(&v, &v).sqrt();
+        v.iter_mut().for_each(|a| *a /= norm);
+        let peak = v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        println!("  λ ≈ {lambda:.4e} M (mode's largest entry {peak:.3e}, ‖v‖_M = 1)");
+        found.push(v);
     }
     Ok(())
 }
