@@ -3,8 +3,10 @@
 //! the iterations, shifts and indefinite steps of every step and the full history of the last one.
 //! The 11th step (index 10) starts from SCENES.md's speed-vs-error state.
 //!
-//! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [shift]`
-//! (`shift`: use `IndefinitePolicy::Shift` instead of the default). With `HOOKE_STATE=file` the
+//! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [policy]`
+//! (`policy`: `shift` or `descent` for `IndefinitePolicy::Shift` or `NewtonIfDescent` instead of
+//! the default `ConvexBlend`; `HOOKE_SWEEPS`, `HOOKE_BLOCK_ITERATIONS`, `HOOKE_SHIFT_FACTOR`,
+//! `HOOKE_BLEND_FACTOR` and `HOOKE_INITIAL_SHIFT` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
 //! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k); `HOOKE_DEFINITENESS=clamped`
@@ -15,7 +17,8 @@
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
-    BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem, SparseCholesky,
+    BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem, Relaxation,
+    SparseCholesky,
 };
 use nalgebra::Vector3;
 
@@ -25,8 +28,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let steps: usize = args.get(2).map_or(Ok(11), |s| s.parse())?;
     let indefinite = match args.get(3).map(String::as_str) {
         Some("shift") => IndefinitePolicy::Shift,
-        _ => IndefinitePolicy::NewtonIfDescent,
+        Some("descent") => IndefinitePolicy::NewtonIfDescent,
+        _ => IndefinitePolicy::ConvexBlend,
     };
+    let defaults = NewtonParams::default();
+    let setting = |name: &str, default: f64| -> Result<f64, Box<dyn std::error::Error>> {
+        Ok(std::env::var(name).map_or(Ok(default), |s| s.parse())?)
+    };
+    let relaxation = Relaxation {
+        sweeps: setting("HOOKE_SWEEPS", defaults.relaxation.sweeps as f64)? as usize,
+        block_iterations: setting(
+            "HOOKE_BLOCK_ITERATIONS",
+            defaults.relaxation.block_iterations as f64,
+        )? as usize,
+    };
+    let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
+    let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
+    let initial_shift = setting("HOOKE_INITIAL_SHIFT", defaults.initial_shift)?;
     let mesh = generators::cloth(n, 1e3)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
@@ -39,6 +57,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tolerance: 1e-10,
         max_iterations: 300,
         indefinite,
+        relaxation,
+        shift_factor,
+        blend_factor,
+        initial_shift,
         ..Default::default()
     };
     // HOOKE_DEFINITENESS=clamped: factor the clamped Hessian in every iteration instead.
@@ -101,7 +123,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(r.iterations, |k| k + 1);
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
-             {} indefinite, {} failed attempts, {} factorizations, {:.2?} ({:.2?} factoring)",
+             {} indefinite, {} failed attempts, {} factorizations, {} sweeps, {:.2?} \
+             ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,
             r.gradient(),
@@ -109,8 +132,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             r.indefinite_steps,
             r.failed_factorizations,
             r.factorizations,
+            r.relaxation_sweeps,
             r.wall_time,
-            r.factor_time
+            r.factor_time,
+            r.relaxation_time
         );
         if s + 1 == steps {
             for (k, it) in r.history.iter().enumerate() {

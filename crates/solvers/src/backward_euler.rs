@@ -1,14 +1,36 @@
 //! One backward Euler step of a spring mesh as an objective for [`crate::Newton`].
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use hooke_assembly::spring;
 use hooke_assembly::{
     CounterForce, Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace,
     SpringForces,
 };
 use hooke_mesh::Spring;
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
-use crate::NewtonProblem;
+use crate::{NewtonProblem, Relaxation};
+
+/// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
+const RELAX_ARMIJO: f64 = 1e-4;
+const RELAX_HALVINGS: usize = 20;
+
+/// ½ k (|r + Δr| − l)² − ½ k (|r| − l)², written without subtracting two rounded energies:
+/// (|r_t| − |r|)(|r_t| + |r| − 2l) k/2 with |r_t| − |r| = Δr·(2r + Δr)/(|r_t| + |r|).
+#[inline]
+fn spring_energy_change<const D: usize>(
+    stiffness: f64,
+    rest_length: f64,
+    r: &SVector<f64, D>,
+    dr: &SVector<f64, D>,
+) -> f64 {
+    let sum = r.norm() + (r + dr).norm();
+    if sum == 0.0 {
+        return 0.0;
+    }
+    let difference = dr.dot(&(r * 2.0 + dr)) / sum;
+    0.5 * stiffness * difference * (sum - 2.0 * rest_length)
+}
 
 /// One backward Euler step as a [`NewtonProblem`]: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) over the
 /// free DOFs (D per free vertex, numbered as in [`FreeDofs`]), with the Hessian assembled by
@@ -50,6 +72,10 @@ pub struct BackwardEulerStep<const D: usize> {
     shift: Vec<f64>,
     /// The largest number of springs at one vertex (bounds the terms of a gradient entry).
     max_degree: usize,
+    /// The springs at each vertex as (spring, other end), vertex v's at
+    /// `incident[incident_start[v]..incident_start[v + 1]]`, for the relaxation.
+    incident: Vec<(u32, u32)>,
+    incident_start: Vec<usize>,
     definiteness: Definiteness,
     h: f64,
     /// Inertial target per vertex.
@@ -107,6 +133,28 @@ impl<const D: usize> BackwardEulerStep<D> {
                 .flat_map(|&v| [masses[v as usize]; D])
                 .collect()
         };
+        let mut incident_start = vec![0usize; n + 1];
+        for spring in springs {
+            let (i, j) = spring.ends();
+            incident_start[i + 1] += 1;
+            incident_start[j + 1] += 1;
+        }
+        for v in 0..n {
+            incident_start[v + 1] += incident_start[v];
+        }
+        let mut incident = vec![(0u32, 0u32); incident_start[n]];
+        let mut next = incident_start.clone();
+        for (s, spring) in springs.iter().enumerate() {
+            let (i, j) = spring.ends();
+            incident[next[i]] = (s as u32, j as u32);
+            next[i] += 1;
+            incident[next[j]] = (s as u32, i as u32);
+            next[j] += 1;
+        }
+        let max_degree = (0..n)
+            .map(|v| incident_start[v + 1] - incident_start[v])
+            .max()
+            .unwrap_or(0);
         BackwardEulerStep {
             workspace: pattern.workspace(),
             values: pattern.new_values(),
@@ -115,15 +163,9 @@ impl<const D: usize> BackwardEulerStep<D> {
             masses: masses.to_vec(),
             springs: springs.to_vec(),
             shift,
-            max_degree: {
-                let mut degree = vec![0usize; n];
-                for spring in springs {
-                    let (i, j) = spring.ends();
-                    degree[i] += 1;
-                    degree[j] += 1;
-                }
-                degree.into_iter().max().unwrap_or(0)
-            },
+            max_degree,
+            incident,
+            incident_start,
             definiteness: Definiteness::Exact,
             h,
             y: vec![SVector::zeros(); n],
@@ -308,15 +350,12 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         let energy = hooke_assembly::deterministic_sum(springs.len(), true, |s| {
             let spring = &springs[s];
             let (i, j) = spring.ends();
-            let r_x = x[i] - x[j];
-            let dr = delta[i] - delta[j];
-            let r_t = r_x + dr;
-            let sum = r_x.norm() + r_t.norm();
-            if sum == 0.0 {
-                return 0.0;
-            }
-            let difference = dr.dot(&(r_x * 2.0 + dr)) / sum;
-            0.5 * spring.stiffness * difference * (sum - 2.0 * spring.rest_length)
+            spring_energy_change(
+                spring.stiffness,
+                spring.rest_length,
+                &(x[i] - x[j]),
+                &(delta[i] - delta[j]),
+            )
         });
         let dashpot = if self.dashpot == 0.0 {
             0.0
@@ -413,6 +452,57 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
+        self.assemble(xf, self.definiteness)
+    }
+
+    fn shift_diagonal(&self) -> &[f64] {
+        &self.shift
+    }
+
+    fn has_convexified_hessian(&self) -> bool {
+        true
+    }
+
+    /// The Hessian with the clamped spring blocks ([`Definiteness::Clamped`]): positive definite
+    /// with the masses.
+    fn convexified_hessian(&mut self, xf: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+        Some(self.assemble(xf, Definiteness::Clamped))
+    }
+
+    /// Gauss–Seidel over the free vertices in index order: each vertex takes up to
+    /// `block_iterations` Newton steps on Φ as a function of its own position (the others fixed),
+    /// with its clamped 3×3 Hessian (positive definite: the mass is in it) and a backtracking line
+    /// search on the exact change of Φ, so Φ never rises. Serial, hence deterministic. The pinned
+    /// vertices, and with counter-forces the pinned unknowns, stay where they are.
+    fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> bool {
+        self.expand(xf);
+        for _ in 0..relaxation.sweeps {
+            for f in 0..self.free.free_count() {
+                let v = self.free.free_vertices()[f] as usize;
+                for _ in 0..relaxation.block_iterations {
+                    if !self.relax_vertex(v) {
+                        break;
+                    }
+                }
+            }
+        }
+        let full = self.counter.is_some();
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let o = Self::offset(full, f, v as usize);
+            xf[o..o + D].copy_from_slice(self.x[v as usize].as_slice());
+        }
+        true
+    }
+}
+
+impl<const D: usize> BackwardEulerStep<D> {
+    /// Assemble the Hessian at `xf` with the spring blocks of `definiteness` (dashpot and
+    /// counter-forces included) into `values`.
+    fn assemble(
+        &mut self,
+        xf: &[f64],
+        definiteness: Definiteness,
+    ) -> SparseColMatRef<'_, usize, f64> {
         self.expand(xf);
         self.pattern.assemble_into(
             &self.springs,
@@ -420,7 +510,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             &self.masses,
             self.h,
             HessianParams {
-                definiteness: self.definiteness,
+                definiteness,
                 ..HessianParams::default()
             },
             &mut self.workspace,
@@ -443,7 +533,87 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         self.pattern.matrix(&self.values)
     }
 
-    fn shift_diagonal(&self) -> &[f64] {
-        &self.shift
+    /// One line-searched Newton step of free vertex `v` on Φ with every other vertex fixed (see
+    /// [`NewtonProblem::relax`]); false if it did not move.
+    fn relax_vertex(&mut self, v: usize) -> bool {
+        let h2 = self.h * self.h;
+        let p = self.x[v];
+        let mass = self.masses[v];
+        let incident = &self.incident[self.incident_start[v]..self.incident_start[v + 1]];
+        let mut gradient = (p - self.y[v]) * mass;
+        let mut hessian = SMatrix::<f64, D, D>::identity() * mass;
+        for &(s, other) in incident {
+            let spring = &self.springs[s as usize];
+            let r = p - self.x[other as usize];
+            gradient -= spring::force(spring.stiffness, spring.rest_length, &r) * h2;
+            hessian += spring::hessian_block(
+                spring.stiffness,
+                spring.rest_length,
+                &r,
+                Definiteness::Clamped,
+            ) * h2;
+        }
+        let dashpot = self.h * self.dashpot;
+        if dashpot > 0.0 {
+            // Ψ's terms at v: (h c / 2) a², a = (Δx_v − Δx_o)·d.
+            for &(s, other) in incident {
+                let d = self.dashpot_directions[s as usize];
+                let a = self.dashpot_relative(v, other as usize, &p).dot(&d);
+                gradient += d * (dashpot * a);
+                hessian += d * d.transpose() * dashpot;
+            }
+        }
+        let Some(cholesky) = hessian.cholesky() else {
+            return false;
+        };
+        let step = -cholesky.solve(&gradient);
+        let slope = gradient.dot(&step);
+        if slope.is_nan() || slope >= 0.0 {
+            return false;
+        }
+        let mut alpha = 1.0;
+        for _ in 0..RELAX_HALVINGS {
+            let q = p + step * alpha;
+            let delta = q - p;
+            let change = self.vertex_change(v, &p, &delta);
+            if change.is_finite() && change <= RELAX_ARMIJO * alpha * slope {
+                self.x[v] = q;
+                return delta != SVector::<f64, D>::zeros();
+            }
+            alpha *= 0.5;
+        }
+        false
+    }
+
+    /// Δx_v − Δx_o (displacements from the dashpot's start) with v at `p`.
+    fn dashpot_relative(&self, v: usize, other: usize, p: &SVector<f64, D>) -> SVector<f64, D> {
+        (p - self.dashpot_start[v]) - (self.x[other] - self.dashpot_start[other])
+    }
+
+    /// Φ(v at p + δ) − Φ(v at p), the others fixed, term by term as in
+    /// [`NewtonProblem::objective_change`].
+    fn vertex_change(&self, v: usize, p: &SVector<f64, D>, delta: &SVector<f64, D>) -> f64 {
+        let incident = &self.incident[self.incident_start[v]..self.incident_start[v + 1]];
+        let inertia = 0.5 * self.masses[v] * delta.dot(&((p - self.y[v]) * 2.0 + delta));
+        let mut energy = 0.0;
+        for &(s, other) in incident {
+            let spring = &self.springs[s as usize];
+            energy += spring_energy_change(
+                spring.stiffness,
+                spring.rest_length,
+                &(p - self.x[other as usize]),
+                delta,
+            );
+        }
+        let mut dashpot = 0.0;
+        if self.dashpot > 0.0 {
+            for &(s, other) in incident {
+                let d = self.dashpot_directions[s as usize];
+                let a = self.dashpot_relative(v, other as usize, p).dot(&d);
+                let da = delta.dot(&d);
+                dashpot += da * (2.0 * a + da);
+            }
+        }
+        inertia + self.h * self.h * energy + 0.5 * self.h * self.dashpot * dashpot
     }
 }

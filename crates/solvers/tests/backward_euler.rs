@@ -159,7 +159,7 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
     let mut x = mesh.positions().to_vec();
     let mut v = vec![V::zeros(); x.len()];
     let mut xf = vec![0.0; step.dim()];
-    let mut indefinite = 0;
+    let mut not_convex = 0;
     for s in 0..=10 {
         if s == 10 {
             newton.params.tolerance = 1e-8;
@@ -176,13 +176,15 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
         step.set_step(&y, &x, &mut xf);
         let report = newton.minimize(&mut step, &mut xf).unwrap();
         assert_eq!(report.stop, StopReason::Converged, "step {s}: {report:#?}");
-        // Measured: 6–9 iterations per step, none shifted, 22 indefinite steps in steps 3–6.
+        // Measured with the defaults (convex blend, relaxation): 5–8 iterations per step (8 from
+        // the speed-vs-error state), 25 blended steps and 32 failed attempts in steps 0–10.
         assert!(
             report.iterations <= 25,
             "step {s}: {} iterations",
             report.iterations
         );
-        indefinite += report.indefinite_steps;
+        // Every failed attempt under the default policy is an indefinite matrix.
+        not_convex += report.indefinite_steps + report.failed_factorizations;
         let next = step.positions(&xf).to_vec();
         for i in 0..x.len() {
             v[i] = (next[i] - x[i]) / h;
@@ -190,8 +192,8 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
         x = next;
     }
     assert!(
-        indefinite > 0,
-        "the run buckles: some steps must have come from an indefinite Hessian"
+        not_convex > 0,
+        "the run buckles: some Hessians must have been indefinite"
     );
 }
 

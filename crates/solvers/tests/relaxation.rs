@@ -1,0 +1,173 @@
+//! The two pieces Newton's default policy takes from a backward Euler step: its nonlinear relaxation
+//! ([`NewtonProblem::relax`]) and its convexified Hessian ([`NewtonProblem::convexified_hessian`]).
+
+use faer::sparse::SparseColMatRef;
+use hooke_assembly::{Definiteness, FreeDofs};
+use hooke_mesh::generators;
+use hooke_solvers::{
+    BackwardEulerStep, CholeskyParams, Newton, NewtonParams, NewtonProblem, Relaxation,
+    SparseCholesky, StopReason,
+};
+use nalgebra::Vector3;
+use proptest::prelude::*;
+
+type V = Vector3<f64>;
+
+/// A backward Euler step on cloth-n with the given pins, a deformed start (scaled by `squeeze` in
+/// x and z, so the springs are compressed below 1 and stretched above, plus a wave) and an inertial
+/// target moved by `push`; with a dashpot of coefficient `dashpot` (0: none).
+struct Case {
+    step: BackwardEulerStep<3>,
+    start: Vec<f64>,
+    pinned: Vec<u32>,
+}
+
+fn case(n: usize, squeeze: f64, push: f64, dashpot: f64, counter: bool) -> Case {
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let pinned = vec![0u32, n as u32 - 1];
+    let h = 1.0 / 30.0;
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let x_n: Vec<V> = mesh
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(v, p)| {
+            let wave = 0.02 * (7.0 * p.x + 3.0 * p.z + v as f64).sin();
+            V::new(p.x * squeeze, wave, p.z * squeeze)
+        })
+        .collect();
+    let y: Vec<V> = x_n
+        .iter()
+        .enumerate()
+        .map(|(v, x)| {
+            if pinned.contains(&(v as u32)) {
+                *x
+            } else {
+                x + V::new(0.3, -1.0, 0.2) * push * (1.0 + 0.5 * (v as f64).cos())
+            }
+        })
+        .collect();
+    let mut step = if counter {
+        BackwardEulerStep::with_counter_forces(mesh.springs(), mesh.masses(), free, h)
+    } else {
+        BackwardEulerStep::new(mesh.springs(), mesh.masses(), free, h)
+    };
+    let mut start = vec![0.0; step.dim()];
+    step.set_step(&y, &x_n, &mut start);
+    if dashpot > 0.0 {
+        step.set_dashpot(dashpot, &x_n);
+    }
+    Case {
+        step,
+        start,
+        pinned,
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Relaxation never raises Φ, keeps every value finite, leaves the pinned unknowns (with
+    /// counter-forces) bit for bit where they are, and lowers Φ from a start that is not a
+    /// minimiser. The bound on a rise is the round-off of the exact change form: each vertex move is
+    /// accepted only if its own change, computed term by term, is negative, and the global change
+    /// is the sum of those, each good to a few ε times its terms; 1e-12 |Φ| covers that with room
+    /// (Φ has fewer than 1,000 terms here).
+    #[test]
+    fn relaxation_lowers_the_objective(
+        n in 3usize..8,
+        squeeze in 0.3f64..1.5,
+        push in 0.0f64..0.05,
+        dashpot in prop_oneof![Just(0.0), 0.1f64..5.0],
+        counter in any::<bool>(),
+        sweeps in 1usize..4,
+        block_iterations in 1usize..4,
+    ) {
+        let Case { mut step, start, pinned } = case(n, squeeze, push, dashpot, counter);
+        let mut x = start.clone();
+        let relaxation = Relaxation { sweeps, block_iterations };
+        prop_assert!(step.relax(&mut x, relaxation), "backward Euler supports relaxation");
+        prop_assert!(x.iter().all(|v| v.is_finite()));
+        let phi = step.objective(&start);
+        let change = step.objective_change(&start, &x);
+        prop_assert!(change <= 1e-12 * phi.abs(), "Φ rose by {change:e} (Φ = {phi:e})");
+        let mut gradient = vec![0.0; start.len()];
+        step.gradient(&start, &mut gradient);
+        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+        if norm > 1e-8 * phi.abs() {
+            prop_assert!(change < 0.0, "a start with gradient {norm:e} is not a minimiser");
+        }
+        if counter {
+            for &p in &pinned {
+                let o = 3 * p as usize;
+                prop_assert_eq!(&x[o..o + 3], &start[o..o + 3]);
+            }
+        }
+    }
+}
+
+/// The convexified Hessian is the Hessian assembled with clamped spring blocks (dashpot and
+/// counter-forces included), bit for bit, and factors as LLᵀ on a crushed start where the exact
+/// Hessian is indefinite.
+#[test]
+fn the_convexified_hessian_is_the_clamped_one_and_definite() {
+    for (dashpot, counter) in [(0.0, false), (2.0, false), (0.0, true), (2.0, true)] {
+        let Case {
+            mut step, start, ..
+        } = case(6, 0.5, 0.01, dashpot, counter);
+        let pattern = step.pattern().to_owned().unwrap();
+        let exact = step.hessian(&start).val().to_vec();
+        let convex = step
+            .convexified_hessian(&start)
+            .expect("backward Euler has one")
+            .val()
+            .to_vec();
+        step.set_definiteness(Definiteness::Clamped);
+        let clamped = step.hessian(&start).val().to_vec();
+        assert_eq!(
+            convex, clamped,
+            "dashpot {dashpot}, counter-forces {counter}"
+        );
+        let mut cholesky =
+            SparseCholesky::analyze(pattern.as_ref(), CholeskyParams::default()).unwrap();
+        let inertia = cholesky
+            .factorize_ldlt(SparseColMatRef::new(pattern.as_ref(), &exact))
+            .unwrap();
+        assert!(
+            inertia.negative > 0,
+            "squeezed to half, the exact Hessian is indefinite"
+        );
+        cholesky
+            .factorize(SparseColMatRef::new(pattern.as_ref(), &convex))
+            .expect("the convexified Hessian is positive definite");
+    }
+}
+
+/// Newton with the defaults on a crushed start: converges, blends (the exact Hessian is indefinite
+/// there), and counts its relaxation sweeps; with relaxation off it counts none, and so does a
+/// problem without relaxation (tests/newton.rs's checks the latter).
+#[test]
+fn newton_reports_its_blend_and_relaxation() {
+    let Case {
+        mut step, start, ..
+    } = case(8, 0.5, 0.02, 0.0, false);
+    let params = NewtonParams::default();
+    let mut newton = Newton::new(step.pattern(), params).unwrap();
+    let mut x = start.clone();
+    let report = newton.minimize(&mut step, &mut x).unwrap();
+    assert_eq!(report.stop, StopReason::Converged, "{report:#?}");
+    assert!(report.shifted_steps > 0, "{report:#?}");
+    assert_eq!(
+        report.indefinite_steps, 0,
+        "every accepted matrix is definite"
+    );
+    assert_eq!(
+        report.relaxation_sweeps,
+        report.iterations * params.relaxation.sweeps
+    );
+    newton.params.relaxation = Relaxation::NONE;
+    let mut x = start;
+    let report = newton.minimize(&mut step, &mut x).unwrap();
+    assert_eq!(report.stop, StopReason::Converged, "{report:#?}");
+    assert_eq!(report.relaxation_sweeps, 0);
+}
