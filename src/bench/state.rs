@@ -330,8 +330,11 @@ fn solve_reference(
 // The cache: one binary file per scene and start state, keyed by a hash of everything that
 // determines the state and x* (mesh, masses, springs, pins, h, gravity, initial state, the exact
 // solves' settings). Little-endian; f64 stored bit for bit, so a cached run equals a fresh one.
+// The version in MAGIC stands for the exact solves' algorithm: a buckling step has more than one
+// solution, and a changed Newton may pick another one, so it is bumped whenever Newton's default
+// changes (03: convex blend and relaxation).
 
-const MAGIC: &[u8; 12] = b"HOOKEBENCH02";
+const MAGIC: &[u8; 12] = b"HOOKEBENCH03";
 
 /// FNV-1a, 64 bit.
 struct Fnv(u64);
