@@ -195,6 +195,10 @@ fn newton_converges_from_a_crushed_start_with_counted_shifts() {
         report.failed_factorizations > 0,
         "the crushed start must need a shift: {report:#?}"
     );
+    // This problem neither relaxes nor has a convexified Hessian: the default policy falls back to
+    // the indefinite Newton step, and no relaxation is done or counted.
+    assert_eq!(report.relaxation_sweeps, 0);
+    assert_eq!(report.relaxation_time, std::time::Duration::ZERO);
     // A regression guard, not a target: a 30 %-crushed start must unfold the whole grid, far harder
     // than the speed-vs-error state. Counted in factorisations (iterations + failed attempts), the
     // cost of a solve: measured 61 + 5 = 66 (the earlier LLᵀ-with-shift Newton: 53 + 34 = 87).

@@ -67,12 +67,9 @@ fn case(n: usize, squeeze: f64, push: f64, dashpot: f64, counter: bool) -> Case 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
-    /// Relaxation never raises Φ, keeps every value finite, leaves the pinned unknowns (with
-    /// counter-forces) bit for bit where they are, and lowers Φ from a start that is not a
-    /// minimiser. The bound on a rise is the round-off of the exact change form: each vertex move is
-    /// accepted only if its own change, computed term by term, is negative, and the global change
-    /// is the sum of those, each good to a few ε times its terms; 1e-12 |Φ| covers that with room
-    /// (Φ has fewer than 1,000 terms here).
+    /// Relaxation lowers Φ from a start that is not a minimiser (each vertex move is accepted only if
+    /// its own change, computed term by term without cancellation, is negative), keeps every value
+    /// finite, and leaves the pinned unknowns (with counter-forces) bit for bit where they are.
     #[test]
     fn relaxation_lowers_the_objective(
         n in 3usize..8,
@@ -88,15 +85,11 @@ proptest! {
         let relaxation = Relaxation { sweeps, block_iterations };
         prop_assert!(step.relax(&mut x, relaxation), "backward Euler supports relaxation");
         prop_assert!(x.iter().all(|v| v.is_finite()));
+        // Every generated start is waved (its springs are off rest), so it is never a minimiser and
+        // the relaxation must lower Φ, not merely keep it.
         let phi = step.objective(&start);
         let change = step.objective_change(&start, &x);
-        prop_assert!(change <= 1e-12 * phi.abs(), "Φ rose by {change:e} (Φ = {phi:e})");
-        let mut gradient = vec![0.0; start.len()];
-        step.gradient(&start, &mut gradient);
-        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
-        if norm > 1e-8 * phi.abs() {
-            prop_assert!(change < 0.0, "a start with gradient {norm:e} is not a minimiser");
-        }
+        prop_assert!(change < 0.0, "Φ did not fall: change {change:e} (Φ = {phi:e})");
         if counter {
             for &p in &pinned {
                 let o = 3 * p as usize;
@@ -144,8 +137,8 @@ fn the_convexified_hessian_is_the_clamped_one_and_definite() {
 }
 
 /// Newton with the defaults on a crushed start: converges, blends (the exact Hessian is indefinite
-/// there), and counts its relaxation sweeps; with relaxation off it counts none, and so does a
-/// problem without relaxation (tests/newton.rs's checks the latter).
+/// there), and counts its relaxation sweeps; with relaxation off it counts none. (A problem that
+/// cannot relax counts none either: tests/newton.rs.)
 #[test]
 fn newton_reports_its_blend_and_relaxation() {
     let Case {
