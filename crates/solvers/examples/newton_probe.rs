@@ -5,7 +5,8 @@
 //!
 //! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [policy]`
 //! (`policy`: `shift` or `descent` for `IndefinitePolicy::Shift` or `NewtonIfDescent` instead of
-//! the default `ConvexBlend`; `HOOKE_SWEEPS`, `HOOKE_BLOCK_ITERATIONS`, `HOOKE_SHIFT_FACTOR`,
+//! the default `ConvexBlend`; `HOOKE_SWEEPS`, `HOOKE_BLOCK_ITERATIONS`, `HOOKE_FOCUS_SHARE`,
+//! `HOOKE_FOCUS_RINGS`, `HOOKE_FOCUS_SWEEPS`, `HOOKE_SHIFT_FACTOR`,
 //! `HOOKE_BLEND_FACTOR` and `HOOKE_INITIAL_SHIFT` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
@@ -40,6 +41,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         block_iterations: setting(
             "HOOKE_BLOCK_ITERATIONS",
             defaults.relaxation.block_iterations as f64,
+        )? as usize,
+        focus_share: setting("HOOKE_FOCUS_SHARE", defaults.relaxation.focus_share)?,
+        focus_rings: setting("HOOKE_FOCUS_RINGS", defaults.relaxation.focus_rings as f64)? as usize,
+        focus_sweeps: setting(
+            "HOOKE_FOCUS_SWEEPS",
+            defaults.relaxation.focus_sweeps as f64,
         )? as usize,
     };
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
@@ -123,7 +130,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(r.iterations, |k| k + 1);
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
-             {} indefinite, {} failed attempts, {} factorizations, {} sweeps, {:.2?} \
+             {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits), {:.2?} \
              ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,
@@ -133,6 +140,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             r.failed_factorizations,
             r.factorizations,
             r.relaxation_sweeps,
+            r.focused_sweeps,
+            r.relaxed_blocks,
             r.wall_time,
             r.factor_time,
             r.relaxation_time

@@ -9,7 +9,7 @@ use hooke_assembly::{
 use hooke_mesh::Spring;
 use nalgebra::{SMatrix, SVector};
 
-use crate::{NewtonProblem, Relaxation};
+use crate::{NewtonProblem, Relaxation, RelaxationWork};
 
 /// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
 const RELAX_ARMIJO: f64 = 1e-4;
@@ -76,6 +76,11 @@ pub struct BackwardEulerStep<const D: usize> {
     /// `incident[incident_start[v]..incident_start[v + 1]]`, for the relaxation.
     incident: Vec<(u32, u32)>,
     incident_start: Vec<usize>,
+    /// The focused sweeps' buffers: (‖∂Φ/∂x_v‖², v) per free vertex, the selected vertices with
+    /// their rings, and a mark per vertex (all false between calls).
+    focus_heat: Vec<(f64, u32)>,
+    focus_region: Vec<u32>,
+    focus_mark: Vec<bool>,
     definiteness: Definiteness,
     h: f64,
     /// Inertial target per vertex.
@@ -166,6 +171,9 @@ impl<const D: usize> BackwardEulerStep<D> {
             max_degree,
             incident,
             incident_start,
+            focus_heat: Vec::with_capacity(free.free_count()),
+            focus_region: Vec::with_capacity(free.free_count()),
+            focus_mark: vec![false; n],
             definiteness: Definiteness::Exact,
             h,
             y: vec![SVector::zeros(); n],
@@ -472,26 +480,32 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     /// Gauss–Seidel over the free vertices in index order: each vertex takes up to
     /// `block_iterations` Newton steps on Φ as a function of its own position (the others fixed),
     /// with its clamped 3×3 Hessian (positive definite: the mass is in it) and a backtracking line
-    /// search on the exact change of Φ, so Φ never rises. Serial, hence deterministic. The pinned
+    /// search on the exact change of Φ, so Φ never rises. Then the focused sweeps (see
+    /// [`Relaxation`]): the vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and their
+    /// rings of spring neighbours, swept in index order. Serial, hence deterministic. The pinned
     /// vertices, and with counter-forces the pinned unknowns, stay where they are.
-    fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> bool {
+    fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
         self.expand(xf);
+        let mut work = RelaxationWork::default();
+        let free_count = self.free.free_count();
         for _ in 0..relaxation.sweeps {
-            for f in 0..self.free.free_count() {
+            for f in 0..free_count {
                 let v = self.free.free_vertices()[f] as usize;
-                for _ in 0..relaxation.block_iterations {
-                    if !self.relax_vertex(v) {
-                        break;
-                    }
-                }
+                self.relax_block(v, relaxation.block_iterations);
             }
+            work.sweeps += 1;
+            work.block_visits += free_count;
+        }
+        let focused = relaxation.focused_blocks(free_count);
+        if focused > 0 && relaxation.block_iterations > 0 {
+            self.relax_focused(focused, relaxation, &mut work);
         }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let o = Self::offset(full, f, v as usize);
             xf[o..o + D].copy_from_slice(self.x[v as usize].as_slice());
         }
-        true
+        Some(work)
     }
 }
 
@@ -533,25 +547,103 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.pattern.matrix(&self.values)
     }
 
-    /// One line-searched Newton step of free vertex `v` on Φ with every other vertex fixed (see
-    /// [`NewtonProblem::relax`]); false if it did not move.
-    fn relax_vertex(&mut self, v: usize) -> bool {
+    /// Up to `iterations` line-searched Newton steps of free vertex `v` (see
+    /// [`NewtonProblem::relax`]), stopping once it no longer moves.
+    fn relax_block(&mut self, v: usize, iterations: usize) {
+        for _ in 0..iterations {
+            if !self.relax_vertex(v) {
+                break;
+            }
+        }
+    }
+
+    /// The focused sweeps of [`NewtonProblem::relax`] over the `count` hottest free vertices and
+    /// their rings, added to `work`.
+    fn relax_focused(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
+        let mut heat = std::mem::take(&mut self.focus_heat);
+        let mut region = std::mem::take(&mut self.focus_region);
+        heat.clear();
+        for &v in self.free.free_vertices() {
+            let (gradient, _) = self.vertex_model::<false>(v as usize);
+            heat.push((gradient.norm_squared(), v));
+        }
+        // Hottest first, ties to the lower index: a total order, so the selection is deterministic.
+        let hotter = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+        // The sweeps stop once no selected vertex is hotter than the hottest one left out.
+        let threshold = if count < heat.len() {
+            heat.select_nth_unstable_by(count, hotter);
+            heat[count].0
+        } else {
+            0.0
+        };
+        region.clear();
+        for &(_, v) in &heat[..count] {
+            self.focus_mark[v as usize] = true;
+            region.push(v);
+        }
+        let mut ring_start = 0;
+        for _ in 0..relaxation.focus_rings {
+            let ring_end = region.len();
+            for i in ring_start..ring_end {
+                let v = region[i] as usize;
+                for &(_, other) in
+                    &self.incident[self.incident_start[v]..self.incident_start[v + 1]]
+                {
+                    let o = other as usize;
+                    if !self.focus_mark[o] && !self.free.is_pinned(o) {
+                        self.focus_mark[o] = true;
+                        region.push(other);
+                    }
+                }
+            }
+            ring_start = ring_end;
+        }
+        region.sort_unstable();
+        for &v in &region {
+            self.focus_mark[v as usize] = false;
+        }
+        for _ in 0..relaxation.focus_sweeps {
+            for &v in &region {
+                self.relax_block(v as usize, relaxation.block_iterations);
+            }
+            work.focused_sweeps += 1;
+            work.block_visits += region.len();
+            let hottest = region.iter().fold(0.0, |hottest: f64, &v| {
+                hottest.max(self.vertex_model::<false>(v as usize).0.norm_squared())
+            });
+            if hottest <= threshold {
+                break;
+            }
+        }
+        self.focus_heat = heat;
+        self.focus_region = region;
+    }
+
+    /// ∂Φ/∂x_v and, if `BLOCK`, v's diagonal 3×3 block of the clamped Hessian of Φ (else zero):
+    /// Φ as a function of x_v alone, the other vertices fixed.
+    #[inline]
+    fn vertex_model<const BLOCK: bool>(&self, v: usize) -> (SVector<f64, D>, SMatrix<f64, D, D>) {
         let h2 = self.h * self.h;
         let p = self.x[v];
         let mass = self.masses[v];
         let incident = &self.incident[self.incident_start[v]..self.incident_start[v + 1]];
         let mut gradient = (p - self.y[v]) * mass;
-        let mut hessian = SMatrix::<f64, D, D>::identity() * mass;
+        let mut hessian = SMatrix::<f64, D, D>::zeros();
+        if BLOCK {
+            hessian += SMatrix::<f64, D, D>::identity() * mass;
+        }
         for &(s, other) in incident {
             let spring = &self.springs[s as usize];
             let r = p - self.x[other as usize];
             gradient -= spring::force(spring.stiffness, spring.rest_length, &r) * h2;
-            hessian += spring::hessian_block(
-                spring.stiffness,
-                spring.rest_length,
-                &r,
-                Definiteness::Clamped,
-            ) * h2;
+            if BLOCK {
+                hessian += spring::hessian_block(
+                    spring.stiffness,
+                    spring.rest_length,
+                    &r,
+                    Definiteness::Clamped,
+                ) * h2;
+            }
         }
         let dashpot = self.h * self.dashpot;
         if dashpot > 0.0 {
@@ -560,9 +652,19 @@ impl<const D: usize> BackwardEulerStep<D> {
                 let d = self.dashpot_directions[s as usize];
                 let a = self.dashpot_relative(v, other as usize, &p).dot(&d);
                 gradient += d * (dashpot * a);
-                hessian += d * d.transpose() * dashpot;
+                if BLOCK {
+                    hessian += d * d.transpose() * dashpot;
+                }
             }
         }
+        (gradient, hessian)
+    }
+
+    /// One line-searched Newton step of free vertex `v` on Φ with every other vertex fixed (see
+    /// [`NewtonProblem::relax`]); false if it did not move.
+    fn relax_vertex(&mut self, v: usize) -> bool {
+        let p = self.x[v];
+        let (gradient, hessian) = self.vertex_model::<true>(v);
         let Some(cholesky) = hessian.cholesky() else {
             return false;
         };

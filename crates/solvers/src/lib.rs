@@ -39,7 +39,7 @@ pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCho
 pub use jacobi::{Jacobi, JacobiParams};
 pub use newton::{
     IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
-    NewtonReport, Relaxation,
+    NewtonReport, Relaxation, RelaxationWork,
 };
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use projective::{PdParams, PdReport, ProjectiveDynamics};

@@ -6,7 +6,7 @@ use hooke_assembly::{Definiteness, FreeDofs};
 use hooke_mesh::generators;
 use hooke_solvers::{
     BackwardEulerStep, CholeskyParams, Newton, NewtonParams, NewtonProblem, Relaxation,
-    SparseCholesky, StopReason,
+    RelaxationWork, SparseCholesky, StopReason,
 };
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -77,13 +77,32 @@ proptest! {
         push in 0.0f64..0.05,
         dashpot in prop_oneof![Just(0.0), 0.1f64..5.0],
         counter in any::<bool>(),
-        sweeps in 1usize..4,
+        sweeps in 0usize..4,
         block_iterations in 1usize..4,
+        focus_share in prop_oneof![Just(0.0), 0.01f64..1.0],
+        focus_rings in 0usize..3,
+        focus_sweeps in 0usize..4,
     ) {
+        let relaxation = Relaxation { sweeps, block_iterations, focus_share, focus_rings, focus_sweeps };
+        prop_assume!(!relaxation.is_none());
         let Case { mut step, start, pinned } = case(n, squeeze, push, dashpot, counter);
         let mut x = start.clone();
-        let relaxation = Relaxation { sweeps, block_iterations };
-        prop_assert!(step.relax(&mut x, relaxation), "backward Euler supports relaxation");
+        let work = step.relax(&mut x, relaxation).expect("backward Euler supports relaxation");
+        let free = n * n - pinned.len();
+        prop_assert_eq!(work.sweeps, sweeps);
+        let focused = relaxation.focused_blocks(free);
+        if focused > 0 {
+            // At least one focused sweep, at most the limit, each over the selection and its rings.
+            prop_assert!((1..=focus_sweeps).contains(&work.focused_sweeps), "{work:?}");
+            let region = (work.block_visits - sweeps * free) / work.focused_sweeps;
+            prop_assert_eq!(work.block_visits, sweeps * free + region * work.focused_sweeps);
+            prop_assert!((focused..=free).contains(&region), "{work:?}");
+            if focus_rings == 0 {
+                prop_assert_eq!(region, focused);
+            }
+        } else {
+            prop_assert_eq!(work, RelaxationWork { sweeps, focused_sweeps: 0, block_visits: sweeps * free });
+        }
         prop_assert!(x.iter().all(|v| v.is_finite()));
         // Every generated start is waved (its springs are off rest), so it is never a minimiser and
         // the relaxation must lower Φ, not merely keep it.
@@ -136,6 +155,89 @@ fn the_convexified_hessian_is_the_clamped_one_and_definite() {
     }
 }
 
+/// The focused sweeps go where the gradient is: from a minimiser with one vertex pulled away, a
+/// relaxation of focused sweeps only (one vertex selected, one ring) moves that vertex, and no vertex
+/// but it and its spring neighbours, lowers Φ, and shrinks the gradient at the pulled vertex.
+#[test]
+fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
+    let n = 7;
+    let Case {
+        mut step, start, ..
+    } = case(n, 0.8, 0.02, 0.0, false);
+    let mut minimiser = start;
+    let mut newton = Newton::new(
+        step.pattern(),
+        NewtonParams {
+            tolerance: 1e-12,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
+    newton.minimize(&mut step, &mut minimiser).unwrap();
+    // Pull vertex 24, the middle of the 7 × 7 grid, by 5 cm (the grid spacing is 1/6 m).
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let free_dofs = FreeDofs::new(n * n, &[0, n as u32 - 1]).unwrap();
+    let pulled_vertex = 24usize;
+    let pulled = free_dofs.free_index(pulled_vertex).unwrap();
+    let mut x = minimiser.clone();
+    x[3 * pulled + 1] += 0.05;
+    let mut neighbours: Vec<usize> = mesh
+        .springs()
+        .iter()
+        .filter_map(|s| {
+            let (i, j) = s.ends();
+            (i == pulled_vertex)
+                .then_some(j)
+                .or((j == pulled_vertex).then_some(i))
+        })
+        .collect();
+    neighbours.push(pulled_vertex);
+    let free = n * n - 2;
+    let relaxation = Relaxation {
+        sweeps: 0,
+        block_iterations: 3,
+        focus_share: 1.0 / free as f64,
+        focus_rings: 1,
+        focus_sweeps: 5,
+    };
+    let before = x.clone();
+    let mut gradient = vec![0.0; x.len()];
+    step.gradient(&before, &mut gradient);
+    let pulled_gradient = |g: &[f64]| {
+        g[3 * pulled..3 * pulled + 3]
+            .iter()
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt()
+    };
+    let gradient_before = pulled_gradient(&gradient);
+    let work = step.relax(&mut x, relaxation).unwrap();
+    assert!(work.focused_sweeps >= 1, "{work:?}");
+    assert_eq!(
+        work.block_visits,
+        neighbours.len() * work.focused_sweeps,
+        "{work:?}"
+    );
+    assert!(step.objective_change(&before, &x) < 0.0);
+    step.gradient(&x, &mut gradient);
+    assert!(
+        pulled_gradient(&gradient) < 0.1 * gradient_before,
+        "the pulled vertex's gradient {:e} against {gradient_before:e} before",
+        pulled_gradient(&gradient)
+    );
+    for (f, &v) in free_dofs.free_vertices().iter().enumerate() {
+        let moved = x[3 * f..3 * f + 3] != before[3 * f..3 * f + 3];
+        assert!(
+            !moved || neighbours.contains(&(v as usize)),
+            "vertex {v} moved: only the pulled vertex and its neighbours may"
+        );
+    }
+    assert_ne!(
+        x[3 * pulled..3 * pulled + 3],
+        before[3 * pulled..3 * pulled + 3]
+    );
+}
+
 /// Newton with the defaults on a crushed start: converges, blends (the exact Hessian is indefinite
 /// there), and counts its relaxation sweeps; with relaxation off it counts none. (A problem that
 /// cannot relax counts none either: tests/newton.rs.)
@@ -158,9 +260,19 @@ fn newton_reports_its_blend_and_relaxation() {
         report.relaxation_sweeps,
         report.iterations * params.relaxation.sweeps
     );
+    // Every relaxation ends with 1 to focus_sweeps focused sweeps.
+    assert!(
+        (report.iterations..=report.iterations * params.relaxation.focus_sweeps)
+            .contains(&report.focused_sweeps),
+        "{report:#?}"
+    );
+    let free = 8 * 8 - 2;
+    assert!(report.relaxed_blocks > report.relaxation_sweeps * free);
     newton.params.relaxation = Relaxation::NONE;
     let mut x = start;
     let report = newton.minimize(&mut step, &mut x).unwrap();
     assert_eq!(report.stop, StopReason::Converged, "{report:#?}");
     assert_eq!(report.relaxation_sweeps, 0);
+    assert_eq!(report.focused_sweeps, 0);
+    assert_eq!(report.relaxed_blocks, 0);
 }
