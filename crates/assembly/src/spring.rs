@@ -98,6 +98,36 @@ pub fn hessian_block<const D: usize>(
     HessianTerms::new(stiffness, rest_length, r, definiteness).block()
 }
 
+/// [`force`], [`hessian_block`] and |r| together, from one square root of |r|² (the same bits as
+/// the separate calls and `r.norm()`), for callers that need all three of one spring: per-vertex
+/// relaxation, which also reuses |r| in its energy differences.
+#[inline]
+pub fn force_and_hessian_block<const D: usize>(
+    stiffness: f64,
+    rest_length: f64,
+    r: &SVector<f64, D>,
+    definiteness: Definiteness,
+) -> (SVector<f64, D>, SMatrix<f64, D, D>, f64) {
+    let length_squared = r.norm_squared();
+    let length = length_squared.sqrt();
+    // As `direction` and `force`.
+    let force = if length > 0.0 && length.is_finite() {
+        (r / length) * (-stiffness * (length - rest_length))
+    } else {
+        SVector::zeros()
+    };
+    let block = HessianTerms::with_inverse_length(
+        stiffness,
+        rest_length,
+        r,
+        length_squared,
+        1.0 / length,
+        definiteness,
+    )
+    .block();
+    (force, block, length)
+}
+
 /// A spring's Hessian block in factored form, H = along · ûûᵀ + across · I (N/m): what
 /// [`hessian_block`] expands. Kept apart so that assembly can expand it straight into a matrix.
 #[derive(Clone, Copy, Debug)]
@@ -207,6 +237,26 @@ pub fn dashpot_velocity_block<const D: usize>(
 mod tests {
     use super::*;
     use nalgebra::{Vector2, Vector3};
+
+    #[test]
+    fn force_and_hessian_block_are_the_separate_calls_bit_for_bit() {
+        let (k, l) = (3.0, 0.7);
+        for r in [
+            Vector3::new(0.3, -0.4, 0.1),
+            Vector3::new(2.0, 1.0, -3.0),
+            Vector3::new(1e-3, 0.0, 2e-4),
+            Vector3::new(1e-170, 0.0, 0.0),
+            Vector3::zeros(),
+            Vector3::new(1e200, 1e200, 0.0),
+        ] {
+            for definiteness in [Definiteness::Exact, Definiteness::Clamped] {
+                let (f, h, length) = force_and_hessian_block(k, l, &r, definiteness);
+                assert_eq!(f, force(k, l, &r), "{r:?}");
+                assert_eq!(h, hessian_block(k, l, &r, definiteness), "{r:?}");
+                assert_eq!(length.to_bits(), r.norm().to_bits(), "{r:?}");
+            }
+        }
+    }
 
     #[test]
     fn zero_length_is_finite_and_forceless() {

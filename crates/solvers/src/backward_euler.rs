@@ -24,7 +24,19 @@ fn spring_energy_change<const D: usize>(
     r: &SVector<f64, D>,
     dr: &SVector<f64, D>,
 ) -> f64 {
-    let sum = r.norm() + (r + dr).norm();
+    spring_energy_change_from(stiffness, rest_length, r, r.norm(), dr)
+}
+
+/// [`spring_energy_change`] given `length` = `r.norm()`.
+#[inline]
+fn spring_energy_change_from<const D: usize>(
+    stiffness: f64,
+    rest_length: f64,
+    r: &SVector<f64, D>,
+    length: f64,
+    dr: &SVector<f64, D>,
+) -> f64 {
+    let sum = length + (r + dr).norm();
     if sum == 0.0 {
         return 0.0;
     }
@@ -81,6 +93,8 @@ pub struct BackwardEulerStep<const D: usize> {
     focus_heat: Vec<(f64, u32)>,
     focus_region: Vec<u32>,
     focus_mark: Vec<bool>,
+    /// The lengths of one vertex's springs, for the relaxation's line search.
+    incident_lengths: Vec<f64>,
     definiteness: Definiteness,
     h: f64,
     /// Inertial target per vertex.
@@ -174,6 +188,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             focus_heat: Vec::with_capacity(free.free_count()),
             focus_region: Vec::with_capacity(free.free_count()),
             focus_mark: vec![false; n],
+            incident_lengths: vec![0.0; max_degree],
             definiteness: Definiteness::Exact,
             h,
             y: vec![SVector::zeros(); n],
@@ -564,7 +579,7 @@ impl<const D: usize> BackwardEulerStep<D> {
         let mut region = std::mem::take(&mut self.focus_region);
         heat.clear();
         for &v in self.free.free_vertices() {
-            let (gradient, _) = self.vertex_model::<false>(v as usize);
+            let (gradient, _) = self.vertex_model::<false>(v as usize, &mut []);
             heat.push((gradient.norm_squared(), v));
         }
         // Hottest first, ties to the lower index: a total order, so the selection is deterministic.
@@ -609,7 +624,11 @@ impl<const D: usize> BackwardEulerStep<D> {
             work.focused_sweeps += 1;
             work.block_visits += region.len();
             let hottest = region.iter().fold(0.0, |hottest: f64, &v| {
-                hottest.max(self.vertex_model::<false>(v as usize).0.norm_squared())
+                hottest.max(
+                    self.vertex_model::<false>(v as usize, &mut [])
+                        .0
+                        .norm_squared(),
+                )
             });
             if hottest <= threshold {
                 break;
@@ -619,10 +638,15 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.focus_region = region;
     }
 
-    /// ∂Φ/∂x_v and, if `BLOCK`, v's diagonal 3×3 block of the clamped Hessian of Φ (else zero):
+    /// ∂Φ/∂x_v and, if `BLOCK`, v's diagonal 3×3 block of the clamped Hessian of Φ (else zero) and
+    /// the length of each incident spring in `lengths` (in `incident` order; untouched otherwise):
     /// Φ as a function of x_v alone, the other vertices fixed.
     #[inline]
-    fn vertex_model<const BLOCK: bool>(&self, v: usize) -> (SVector<f64, D>, SMatrix<f64, D, D>) {
+    fn vertex_model<const BLOCK: bool>(
+        &self,
+        v: usize,
+        lengths: &mut [f64],
+    ) -> (SVector<f64, D>, SMatrix<f64, D, D>) {
         let h2 = self.h * self.h;
         let p = self.x[v];
         let mass = self.masses[v];
@@ -632,17 +656,23 @@ impl<const D: usize> BackwardEulerStep<D> {
         if BLOCK {
             hessian += SMatrix::<f64, D, D>::identity() * mass;
         }
-        for &(s, other) in incident {
+        for (k, &(s, other)) in incident.iter().enumerate() {
             let spring = &self.springs[s as usize];
             let r = p - self.x[other as usize];
-            gradient -= spring::force(spring.stiffness, spring.rest_length, &r) * h2;
             if BLOCK {
-                hessian += spring::hessian_block(
+                // One square root per spring for the force, the block and the line search's
+                // energy change (the same bits as three separate calls).
+                let (force, block, length) = spring::force_and_hessian_block(
                     spring.stiffness,
                     spring.rest_length,
                     &r,
                     Definiteness::Clamped,
-                ) * h2;
+                );
+                gradient -= force * h2;
+                hessian += block * h2;
+                lengths[k] = length;
+            } else {
+                gradient -= spring::force(spring.stiffness, spring.rest_length, &r) * h2;
             }
         }
         let dashpot = self.h * self.dashpot;
@@ -663,8 +693,16 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// One line-searched Newton step of free vertex `v` on Φ with every other vertex fixed (see
     /// [`NewtonProblem::relax`]); false if it did not move.
     fn relax_vertex(&mut self, v: usize) -> bool {
+        let mut lengths = std::mem::take(&mut self.incident_lengths);
+        let moved = self.relax_vertex_with(v, &mut lengths);
+        self.incident_lengths = lengths;
+        moved
+    }
+
+    /// [`BackwardEulerStep::relax_vertex`] with a buffer for the incident springs' lengths.
+    fn relax_vertex_with(&mut self, v: usize, lengths: &mut [f64]) -> bool {
         let p = self.x[v];
-        let (gradient, hessian) = self.vertex_model::<true>(v);
+        let (gradient, hessian) = self.vertex_model::<true>(v, lengths);
         let Some(cholesky) = hessian.cholesky() else {
             return false;
         };
@@ -677,7 +715,7 @@ impl<const D: usize> BackwardEulerStep<D> {
         for _ in 0..RELAX_HALVINGS {
             let q = p + step * alpha;
             let delta = q - p;
-            let change = self.vertex_change(v, &p, &delta);
+            let change = self.vertex_change(v, &p, lengths, &delta);
             if change.is_finite() && change <= RELAX_ARMIJO * alpha * slope {
                 self.x[v] = q;
                 return delta != SVector::<f64, D>::zeros();
@@ -693,17 +731,24 @@ impl<const D: usize> BackwardEulerStep<D> {
     }
 
     /// Φ(v at p + δ) − Φ(v at p), the others fixed, term by term as in
-    /// [`NewtonProblem::objective_change`].
-    fn vertex_change(&self, v: usize, p: &SVector<f64, D>, delta: &SVector<f64, D>) -> f64 {
+    /// [`NewtonProblem::objective_change`]; `lengths` are the incident springs' lengths at p.
+    fn vertex_change(
+        &self,
+        v: usize,
+        p: &SVector<f64, D>,
+        lengths: &[f64],
+        delta: &SVector<f64, D>,
+    ) -> f64 {
         let incident = &self.incident[self.incident_start[v]..self.incident_start[v + 1]];
         let inertia = 0.5 * self.masses[v] * delta.dot(&((p - self.y[v]) * 2.0 + delta));
         let mut energy = 0.0;
-        for &(s, other) in incident {
+        for (&(s, other), &length) in incident.iter().zip(lengths) {
             let spring = &self.springs[s as usize];
-            energy += spring_energy_change(
+            energy += spring_energy_change_from(
                 spring.stiffness,
                 spring.rest_length,
                 &(p - self.x[other as usize]),
+                length,
                 delta,
             );
         }
