@@ -6,7 +6,7 @@
 //! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [policy]`
 //! (`policy`: `shift` or `descent` for `IndefinitePolicy::Shift` or `NewtonIfDescent` instead of
 //! the default `ConvexBlend`; `HOOKE_SWEEPS`, `HOOKE_BLOCK_ITERATIONS`, `HOOKE_FOCUS_SHARE`,
-//! `HOOKE_FOCUS_RINGS`, `HOOKE_FOCUS_SWEEPS`, `HOOKE_SHIFT_FACTOR`,
+//! `HOOKE_FOCUS_RINGS`, `HOOKE_FOCUS_SWEEPS`, `HOOKE_TRUSTED_MODEL`, `HOOKE_SHIFT_FACTOR`,
 //! `HOOKE_BLEND_FACTOR` and `HOOKE_INITIAL_SHIFT` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
@@ -48,6 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "HOOKE_FOCUS_SWEEPS",
             defaults.relaxation.focus_sweeps as f64,
         )? as usize,
+        trusted_model: setting("HOOKE_TRUSTED_MODEL", defaults.relaxation.trusted_model)?,
     };
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
@@ -130,7 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(r.iterations, |k| k + 1);
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
-             {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits), {:.2?} \
+             {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits, {} skipped), {:.2?} \
              ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,
@@ -142,6 +143,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             r.relaxation_sweeps,
             r.focused_sweeps,
             r.relaxed_blocks,
+            r.skipped_relaxations,
             r.wall_time,
             r.factor_time,
             r.relaxation_time

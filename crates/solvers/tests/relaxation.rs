@@ -83,7 +83,14 @@ proptest! {
         focus_rings in 0usize..3,
         focus_sweeps in 0usize..4,
     ) {
-        let relaxation = Relaxation { sweeps, block_iterations, focus_share, focus_rings, focus_sweeps };
+        let relaxation = Relaxation {
+            sweeps,
+            block_iterations,
+            focus_share,
+            focus_rings,
+            focus_sweeps,
+            ..Relaxation::default()
+        };
         prop_assume!(!relaxation.is_none());
         let Case { mut step, start, pinned } = case(n, squeeze, push, dashpot, counter);
         let mut x = start.clone();
@@ -199,6 +206,7 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
         focus_share: 1.0 / free as f64,
         focus_rings: 1,
         focus_sweeps: 5,
+        ..Relaxation::default()
     };
     let before = x.clone();
     let mut gradient = vec![0.0; x.len()];
@@ -256,14 +264,13 @@ fn newton_reports_its_blend_and_relaxation() {
         report.indefinite_steps, 0,
         "every accepted matrix is definite"
     );
-    assert_eq!(
-        report.relaxation_sweeps,
-        report.iterations * params.relaxation.sweeps
-    );
+    // Every iteration relaxes, unless its step was trusted.
+    let relaxed = report.iterations - report.skipped_relaxations;
+    assert!(relaxed > 0, "{report:#?}");
+    assert_eq!(report.relaxation_sweeps, relaxed * params.relaxation.sweeps);
     // Every relaxation ends with 1 to focus_sweeps focused sweeps.
     assert!(
-        (report.iterations..=report.iterations * params.relaxation.focus_sweeps)
-            .contains(&report.focused_sweeps),
+        (relaxed..=relaxed * params.relaxation.focus_sweeps).contains(&report.focused_sweeps),
         "{report:#?}"
     );
     let free = 8 * 8 - 2;
@@ -275,4 +282,37 @@ fn newton_reports_its_blend_and_relaxation() {
     assert_eq!(report.relaxation_sweeps, 0);
     assert_eq!(report.focused_sweeps, 0);
     assert_eq!(report.relaxed_blocks, 0);
+    assert_eq!(report.skipped_relaxations, 0);
+}
+
+/// Where Newton's quadratic model holds (a stretched cloth pulled a little further: every spring
+/// stretched, the exact Hessian positive definite), the relaxation is skipped after the exact, full
+/// steps whose decrease of Φ matches the model's, at least after the last one; with
+/// `trusted_model: 0.0` it never is. Both runs converge.
+#[test]
+fn trusted_exact_steps_skip_the_relaxation() {
+    let Case {
+        mut step, start, ..
+    } = case(6, 1.2, 0.01, 0.0, false);
+    for (trusted_model, skips) in [(Relaxation::default().trusted_model, true), (0.0, false)] {
+        let params = NewtonParams {
+            tolerance: 1e-10,
+            relaxation: Relaxation {
+                trusted_model,
+                ..Relaxation::default()
+            },
+            ..NewtonParams::default()
+        };
+        let mut newton = Newton::new(step.pattern(), params).unwrap();
+        let mut x = start.clone();
+        let report = newton.minimize(&mut step, &mut x).unwrap();
+        assert_eq!(report.stop, StopReason::Converged, "{report:#?}");
+        assert_eq!(
+            report.shifted_steps, 0,
+            "the exact Hessian is definite: {report:#?}"
+        );
+        assert_eq!(report.skipped_relaxations > 0, skips, "{report:#?}");
+        let relaxed = report.iterations - report.skipped_relaxations;
+        assert_eq!(report.relaxation_sweeps, relaxed * params.relaxation.sweeps);
+    }
 }
