@@ -14,7 +14,7 @@ use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
     BackwardEulerStep, BlockJacobi, CgParams, ConjugateGradient, Jacobi, JacobiParams, Newton,
-    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Symmetric,
+    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation, Symmetric,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -101,25 +101,41 @@ fn solvers_do_not_allocate_per_iteration() {
         );
     }
 
-    // Newton on backward Euler.
-    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
-    let mut newton = Newton::new(step.pattern(), NewtonParams::default()).unwrap();
-    let mut unknowns = vec![0.0; step.dim()];
-    let mut run = |iterations: usize| {
-        newton.params.max_iterations = iterations;
-        newton.params.tolerance = 0.0;
-        step.set_step(&y, mesh.positions(), &mut unknowns);
-        allocations(|| {
-            let report = newton.minimize(&mut step, &mut unknowns).unwrap();
-            assert_eq!(report.iterations, iterations);
-        })
-    };
-    run(2);
-    let (few, many) = (fewest(|| run(1)), fewest(|| run(4)));
-    assert_eq!(
-        few, many,
-        "Newton: {few} allocations in 1 iteration, {many} in 4"
-    );
+    // Newton on backward Euler, with the default relaxation and with one that never skips (the
+    // steps from rest may all be trusted, which would leave the sweeps unmeasured).
+    for relaxation in [
+        Relaxation::default(),
+        Relaxation {
+            trusted_model: 0.0,
+            ..Relaxation::default()
+        },
+    ] {
+        let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
+        let params = NewtonParams {
+            relaxation,
+            ..NewtonParams::default()
+        };
+        let mut newton = Newton::new(step.pattern(), params).unwrap();
+        let mut unknowns = vec![0.0; step.dim()];
+        let mut run = |iterations: usize| {
+            newton.params.max_iterations = iterations;
+            newton.params.tolerance = 0.0;
+            step.set_step(&y, mesh.positions(), &mut unknowns);
+            allocations(|| {
+                let report = newton.minimize(&mut step, &mut unknowns).unwrap();
+                assert_eq!(report.iterations, iterations);
+                if relaxation.trusted_model == 0.0 {
+                    assert_eq!(report.relaxation_sweeps, iterations * relaxation.sweeps);
+                }
+            })
+        };
+        run(2);
+        let (few, many) = (fewest(|| run(1)), fewest(|| run(4)));
+        assert_eq!(
+            few, many,
+            "Newton ({relaxation:?}): {few} allocations in 1 iteration, {many} in 4"
+        );
+    }
 
     // CG and block Jacobi on a 3×3-block diagonally dominant system.
     let blocks = 200;
