@@ -825,7 +825,8 @@ impl Newton {
             x.copy_from_slice(&self.trial);
             // The quadratic model of an exact, positive definite Newton step predicts the change
             // ½ gᵀΔ; agreement within the tolerance means Newton is in its quadratic regime.
-            let trusted = self.shift == 0.0
+            let trusted = p.relaxation.trusted_model > 0.0
+                && self.shift == 0.0
                 && negative == 0
                 && alpha == 1.0
                 && (change / (0.5 * step_slope) - 1.0).abs() <= p.relaxation.trusted_model;
