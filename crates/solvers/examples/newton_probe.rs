@@ -13,7 +13,8 @@
 //! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k); `HOOKE_DEFINITENESS=clamped`
 //! factors the clamped Hessian in every iteration. `HOOKE_EIG=1` prints the inertia of the Hessian
 //! at the last step's solution and its smallest generalised eigenvalues λ (H v = λ M v, in units of
-//! the masses), by inverse iteration.
+//! the masses), by inverse iteration. `HOOKE_SPRINGS=1` prints the distribution of |r|/l over
+//! the springs at the last step's solution (how compressed the most compressed springs are).
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -165,6 +166,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             smallest_eigenvalues(&mut step, &unknowns, 4)?;
         }
         let next = step.positions(&unknowns).to_vec();
+        if s + 1 == steps && std::env::var("HOOKE_SPRINGS").is_ok() {
+            spring_ratios(mesh.springs(), &next);
+        }
         for i in 0..x.len() {
             v[i] = (next[i] - x[i]) / h;
         }
@@ -221,4 +225,31 @@ fn smallest_eigenvalues(
         found.push(v);
     }
     Ok(())
+}
+
+/// The distribution of the stretch |r|/l over `springs` at `positions`: its smallest values and
+/// quantiles, and how many springs are compressed below a half and a tenth of their rest length.
+fn spring_ratios(springs: &[hooke_mesh::Spring], positions: &[Vector3<f64>]) {
+    let mut ratios: Vec<f64> = springs
+        .iter()
+        .map(|spring| {
+            let (i, j) = spring.ends();
+            (positions[i] - positions[j]).norm() / spring.rest_length
+        })
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    let quantile = |q: f64| ratios[((ratios.len() - 1) as f64 * q) as usize];
+    let below = |t: f64| ratios.iter().take_while(|&&r| r < t).count();
+    println!(
+        "  |r|/l at the solution: smallest {:?}; 0.1 % {:.3}, 1 % {:.3}, median {:.3}, largest {:.3}; \
+         {} below 0.5, {} below 0.1 (of {})",
+        &ratios[..5.min(ratios.len())],
+        quantile(0.001),
+        quantile(0.01),
+        quantile(0.5),
+        ratios[ratios.len() - 1],
+        below(0.5),
+        below(0.1),
+        ratios.len()
+    );
 }
