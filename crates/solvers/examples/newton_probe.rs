@@ -24,6 +24,14 @@ use hooke_solvers::{
 };
 use nalgebra::Vector3;
 
+/// The setting in environment variable `name`, or `default` where it is unset.
+fn setting<T: std::str::FromStr>(name: &str, default: T) -> Result<T, Box<dyn std::error::Error>>
+where
+    T::Err: std::error::Error + 'static,
+{
+    Ok(std::env::var(name).map_or(Ok(default), |s| s.parse())?)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).map_or(Ok(40), |s| s.parse())?;
@@ -34,22 +42,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         _ => IndefinitePolicy::ConvexBlend,
     };
     let defaults = NewtonParams::default();
-    let setting = |name: &str, default: f64| -> Result<f64, Box<dyn std::error::Error>> {
-        Ok(std::env::var(name).map_or(Ok(default), |s| s.parse())?)
-    };
+    let r = defaults.relaxation;
     let relaxation = Relaxation {
-        sweeps: setting("HOOKE_SWEEPS", defaults.relaxation.sweeps as f64)? as usize,
-        block_iterations: setting(
-            "HOOKE_BLOCK_ITERATIONS",
-            defaults.relaxation.block_iterations as f64,
-        )? as usize,
-        focus_share: setting("HOOKE_FOCUS_SHARE", defaults.relaxation.focus_share)?,
-        focus_rings: setting("HOOKE_FOCUS_RINGS", defaults.relaxation.focus_rings as f64)? as usize,
-        focus_sweeps: setting(
-            "HOOKE_FOCUS_SWEEPS",
-            defaults.relaxation.focus_sweeps as f64,
-        )? as usize,
-        trusted_model: setting("HOOKE_TRUSTED_MODEL", defaults.relaxation.trusted_model)?,
+        sweeps: setting("HOOKE_SWEEPS", r.sweeps)?,
+        block_iterations: setting("HOOKE_BLOCK_ITERATIONS", r.block_iterations)?,
+        focus_share: setting("HOOKE_FOCUS_SHARE", r.focus_share)?,
+        focus_rings: setting("HOOKE_FOCUS_RINGS", r.focus_rings)?,
+        focus_sweeps: setting("HOOKE_FOCUS_SWEEPS", r.focus_sweeps)?,
+        trusted_model: setting("HOOKE_TRUSTED_MODEL", r.trusted_model)?,
     };
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
@@ -57,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mesh = generators::cloth(n, 1e3)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
-    let substeps: f64 = std::env::var("HOOKE_SUBSTEPS").map_or(Ok(1.0), |s| s.parse())?;
+    let substeps: f64 = setting("HOOKE_SUBSTEPS", 1.0)?;
     let h = 1.0 / (30.0 * substeps);
     let gravity = Vector3::new(0.0, -9.81, 0.0);
     let free = FreeDofs::new(mesh.vertex_count(), &pinned)?;

@@ -18,6 +18,9 @@ use hooke_solvers::{
 };
 use nalgebra::{Matrix3, Vector3};
 
+mod common;
+use common::inertial_target;
+
 struct Counting;
 
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
@@ -60,18 +63,9 @@ fn solvers_do_not_allocate_per_iteration() {
     let pinned = [0, n as u32 - 1];
     let h = 1.0 / 30.0;
     let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
-    let y: Vec<Vector3<f64>> = mesh
-        .positions()
-        .iter()
-        .enumerate()
-        .map(|(v, x)| {
-            if pinned.contains(&(v as u32)) {
-                *x
-            } else {
-                x + Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
-            }
-        })
-        .collect();
+    let y = inertial_target(mesh.positions(), &pinned, |_, x| {
+        Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
+    });
 
     // Projective dynamics, serial and parallel local steps.
     for parallel in [false, true] {

@@ -9,23 +9,16 @@ use hooke_solvers::{
 };
 use nalgebra::Vector3;
 
+mod common;
+use common::inertial_target;
+
 type V = Vector3<f64>;
 
 /// Solve one step from rest, under gravity, both ways; return (PD result, Newton result, |x* − x_n|).
 fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
     let x_n = mesh.positions().to_vec();
     let g = V::new(0.0, -9.81, 0.0);
-    let y: Vec<V> = x_n
-        .iter()
-        .enumerate()
-        .map(|(v, x)| {
-            if pinned.contains(&(v as u32)) {
-                *x
-            } else {
-                x + g * (h * h)
-            }
-        })
-        .collect();
+    let y = inertial_target(&x_n, pinned, |_, _| g * (h * h));
     let free = FreeDofs::new(mesh.vertex_count(), pinned).unwrap();
     // Projective dynamics to convergence, Φ recorded.
     let params = PdParams {
@@ -164,15 +157,7 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
         if s == 10 {
             newton.params.tolerance = 1e-8;
         }
-        let y: Vec<V> = (0..x.len())
-            .map(|i| {
-                if pinned.contains(&(i as u32)) {
-                    x[i]
-                } else {
-                    x[i] + v[i] * h + gravity * (h * h)
-                }
-            })
-            .collect();
+        let y = inertial_target(&x, &pinned, |i, _| v[i] * h + gravity * (h * h));
         step.set_step(&y, &x, &mut xf);
         let report = newton.minimize(&mut step, &mut xf).unwrap();
         assert_eq!(report.stop, StopReason::Converged, "step {s}: {report:#?}");
@@ -215,17 +200,9 @@ fn the_dashpot_term_is_consistent_and_enters_the_step() {
         .enumerate()
         .map(|(v, p)| p + V::new(0.01 * (v as f64).sin(), 0.02 * (v as f64 * 0.7).cos(), 0.0))
         .collect();
-    let y: Vec<V> = x_n
-        .iter()
-        .enumerate()
-        .map(|(v, p)| {
-            if pinned.contains(&(v as u32)) {
-                *p
-            } else {
-                p + V::new(0.05, -0.03, 0.02) * (1.0 + 0.1 * v as f64).sin()
-            }
-        })
-        .collect();
+    let y = inertial_target(&x_n, &pinned, |v, _| {
+        V::new(0.05, -0.03, 0.02) * (1.0 + 0.1 * v as f64).sin()
+    });
     let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
     let mut xf = vec![0.0; step.dim()];
     step.set_step(&y, &x_n, &mut xf);
@@ -336,17 +313,9 @@ fn counter_forces_give_the_reduced_newton_step() {
         .map(|p| p + V::new(0.0, 0.02 * (5.0 * p.x).sin(), 0.01 * (3.0 * p.z).cos()))
         .collect();
     x_n[9] += V::new(0.05, 0.0, 0.0);
-    let y: Vec<V> = x_n
-        .iter()
-        .enumerate()
-        .map(|(v, x)| {
-            if pinned.contains(&(v as u32)) {
-                *x
-            } else {
-                x + V::new(0.1, 0.3, 0.0) * h + g * (h * h)
-            }
-        })
-        .collect();
+    let y = inertial_target(&x_n, &pinned, |_, _| {
+        V::new(0.1, 0.3, 0.0) * h + g * (h * h)
+    });
     let params = NewtonParams {
         tolerance: 1e-10,
         ..Default::default()

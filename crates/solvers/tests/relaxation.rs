@@ -11,6 +11,9 @@ use hooke_solvers::{
 use nalgebra::Vector3;
 use proptest::prelude::*;
 
+mod common;
+use common::inertial_target;
+
 type V = Vector3<f64>;
 
 /// A backward Euler step on cloth-n with the given pins, a deformed start (scaled by `squeeze` in
@@ -36,17 +39,9 @@ fn case(n: usize, squeeze: f64, push: f64, dashpot: f64, counter: bool) -> Case 
             V::new(p.x * squeeze, wave, p.z * squeeze)
         })
         .collect();
-    let y: Vec<V> = x_n
-        .iter()
-        .enumerate()
-        .map(|(v, x)| {
-            if pinned.contains(&(v as u32)) {
-                *x
-            } else {
-                x + V::new(0.3, -1.0, 0.2) * push * (1.0 + 0.5 * (v as f64).cos())
-            }
-        })
-        .collect();
+    let y = inertial_target(&x_n, &pinned, |v, _| {
+        V::new(0.3, -1.0, 0.2) * push * (1.0 + 0.5 * (v as f64).cos())
+    });
     let mut step = if counter {
         BackwardEulerStep::with_counter_forces(mesh.springs(), mesh.masses(), free, h)
     } else {
