@@ -50,10 +50,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         focus_rings: setting("HOOKE_FOCUS_RINGS", r.focus_rings)?,
         focus_sweeps: setting("HOOKE_FOCUS_SWEEPS", r.focus_sweeps)?,
         trusted_model: setting("HOOKE_TRUSTED_MODEL", r.trusted_model)?,
+        region_share: setting("HOOKE_REGION_SHARE", r.region_share)?,
+        region_rings: setting("HOOKE_REGION_RINGS", r.region_rings)?,
+        region_tolerance: setting("HOOKE_REGION_TOLERANCE", r.region_tolerance)?,
+        region_iterations: setting("HOOKE_REGION_ITERATIONS", r.region_iterations)?,
     };
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
     let initial_shift = setting("HOOKE_INITIAL_SHIFT", defaults.initial_shift)?;
+    let exact_retry = setting("HOOKE_EXACT_RETRY", defaults.exact_retry)?;
     let mesh = generators::cloth(n, 1e3)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
@@ -70,6 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         shift_factor,
         blend_factor,
         initial_shift,
+        exact_retry,
         ..Default::default()
     };
     // HOOKE_DEFINITENESS=clamped: factor the clamped Hessian in every iteration instead.
@@ -132,7 +138,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map_or(r.iterations, |k| k + 1);
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
-             {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits, {} skipped), {:.2?} \
+             {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits, {} skipped), \
+             {} regions ({} vertices, {} inner iterations, {} inner factorizations), {:.2?} \
              ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,
@@ -145,6 +152,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             r.focused_sweeps,
             r.relaxed_blocks,
             r.skipped_relaxations,
+            r.region_solves,
+            r.region_blocks,
+            r.region_iterations,
+            r.region_factorizations,
             r.wall_time,
             r.factor_time,
             r.relaxation_time

@@ -9,7 +9,7 @@ use hooke_assembly::{
 use hooke_mesh::Spring;
 use nalgebra::{SMatrix, SVector};
 
-use crate::{NewtonProblem, Relaxation, RelaxationWork};
+use crate::{Newton, NewtonError, NewtonParams, NewtonProblem, Relaxation, RelaxationWork};
 
 /// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
 const RELAX_ARMIJO: f64 = 1e-4;
@@ -515,6 +515,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         if focused > 0 && relaxation.block_iterations > 0 {
             self.relax_focused(focused, relaxation, &mut work);
         }
+        let region = relaxation.region_blocks(free_count);
+        if region > 0 {
+            self.relax_region(region, relaxation, &mut work);
+        }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let o = Self::offset(full, f, v as usize);
@@ -574,7 +578,10 @@ impl<const D: usize> BackwardEulerStep<D> {
 
     /// The focused sweeps of [`NewtonProblem::relax`] over the `count` hottest free vertices and
     /// their rings, added to `work`.
-    fn relax_focused(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
+    /// Select the `count` free vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and
+    /// `rings` rings of their free spring neighbours into `focus_region` (sorted), and return the
+    /// squared gradient norm of the hottest vertex left out (0 if none is).
+    fn select_hottest(&mut self, count: usize, rings: usize) -> f64 {
         let mut heat = std::mem::take(&mut self.focus_heat);
         let mut region = std::mem::take(&mut self.focus_region);
         heat.clear();
@@ -584,7 +591,6 @@ impl<const D: usize> BackwardEulerStep<D> {
         }
         // Hottest first, ties to the lower index: a total order, so the selection is deterministic.
         let hotter = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
-        // The sweeps stop once no selected vertex is hotter than the hottest one left out.
         let threshold = if count < heat.len() {
             heat.select_nth_unstable_by(count, hotter);
             heat[count].0
@@ -597,7 +603,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             region.push(v);
         }
         let mut ring_start = 0;
-        for _ in 0..relaxation.focus_rings {
+        for _ in 0..rings {
             let ring_end = region.len();
             for i in ring_start..ring_end {
                 let v = region[i] as usize;
@@ -617,6 +623,15 @@ impl<const D: usize> BackwardEulerStep<D> {
         for &v in &region {
             self.focus_mark[v as usize] = false;
         }
+        self.focus_heat = heat;
+        self.focus_region = region;
+        threshold
+    }
+
+    fn relax_focused(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
+        // The sweeps stop once no selected vertex is hotter than the hottest one left out.
+        let threshold = self.select_hottest(count, relaxation.focus_rings);
+        let region = std::mem::take(&mut self.focus_region);
         for _ in 0..relaxation.focus_sweeps {
             for &v in &region {
                 self.relax_block(v as usize, relaxation.block_iterations);
@@ -634,7 +649,97 @@ impl<const D: usize> BackwardEulerStep<D> {
                 break;
             }
         }
-        self.focus_heat = heat;
+        self.focus_region = region;
+    }
+
+    /// The nonlinear elimination of [`Relaxation::region_share`]: the `count` hottest free vertices
+    /// and their rings are solved together by an inner [`Newton`] on Φ as a function of their
+    /// positions, every other vertex held (the region's springs, with the held ends of its
+    /// boundary springs as pinned vertices of a small [`BackwardEulerStep`]), added to `work`.
+    /// Every accepted inner step and relaxation lowers Φ, so Φ never rises; an inner solve that
+    /// fails keeps its last accepted iterate (or, on non-finite values, the region's start).
+    ///
+    /// Builds the region's problem and its symbolic analysis anew on every call: the region
+    /// changes from one call to the next, and with it the sparsity pattern. This is the one place
+    /// where a Newton iteration allocates (O(region) memory, once per iteration; the inner solve's
+    /// own iterations do not).
+    fn relax_region(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
+        self.select_hottest(count, relaxation.region_rings);
+        let region = std::mem::take(&mut self.focus_region);
+        // Local numbering: the region in index order, then the held ends of its boundary springs.
+        let mut local = vec![u32::MAX; self.x.len()];
+        let mut vertices: Vec<u32> = region.clone();
+        for (k, &v) in region.iter().enumerate() {
+            local[v as usize] = k as u32;
+        }
+        let mut springs = Vec::new();
+        let mut held = Vec::new();
+        for &v in &region {
+            let v = v as usize;
+            for &(s, other) in &self.incident[self.incident_start[v]..self.incident_start[v + 1]] {
+                let o = other as usize;
+                if local[o] == u32::MAX {
+                    local[o] = vertices.len() as u32;
+                    held.push(vertices.len() as u32);
+                    vertices.push(other);
+                }
+                // Each spring once: from its lower end in the region, or from its only end there.
+                if (o as u32) < (v as u32) && (local[o] as usize) < region.len() {
+                    continue;
+                }
+                let spring = self.springs[s as usize];
+                springs.push(Spring {
+                    i: local[spring.i as usize],
+                    j: local[spring.j as usize],
+                    ..spring
+                });
+            }
+        }
+        let gather = |values: &[SVector<f64, D>]| -> Vec<SVector<f64, D>> {
+            vertices.iter().map(|&v| values[v as usize]).collect()
+        };
+        let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
+        let Ok(free) = FreeDofs::new(vertices.len(), &held) else {
+            self.focus_region = region;
+            return;
+        };
+        let mut step = BackwardEulerStep::<D>::new(&springs, &masses, free, self.h);
+        let positions = gather(&self.x);
+        let mut unknowns = vec![0.0; step.dim()];
+        step.set_step(&gather(&self.y), &positions, &mut unknowns);
+        for (k, p) in positions[..region.len()].iter().enumerate() {
+            unknowns[D * k..D * k + D].copy_from_slice(p.as_slice());
+        }
+        if self.dashpot > 0.0 {
+            step.set_dashpot(self.dashpot, &gather(&self.dashpot_start));
+        }
+        step.definiteness = self.definiteness;
+        let params = NewtonParams {
+            tolerance: relaxation.region_tolerance,
+            max_iterations: relaxation.region_iterations,
+            relaxation: relaxation.without_region(),
+            ..NewtonParams::default()
+        };
+        let Ok(mut newton) = Newton::new(step.pattern(), params) else {
+            self.focus_region = region;
+            return;
+        };
+        let report = match newton.minimize(&mut step, &mut unknowns) {
+            Ok(report) => Some(report),
+            Err(NewtonError::NonFinite { .. }) => None,
+            Err(NewtonError::LineSearchFailed { report })
+            | Err(NewtonError::NotPositiveDefinite { report, .. }) => Some(*report),
+            Err(_) => None,
+        };
+        if let Some(report) = report {
+            for (k, &v) in region.iter().enumerate() {
+                self.x[v as usize] = SVector::from_column_slice(&unknowns[D * k..D * k + D]);
+            }
+            work.region_solves += 1;
+            work.region_blocks += region.len();
+            work.region_iterations += report.iterations;
+            work.region_factorizations += report.factorizations;
+        }
         self.focus_region = region;
     }
 

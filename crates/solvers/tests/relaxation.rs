@@ -6,7 +6,7 @@ use hooke_assembly::{Definiteness, FreeDofs};
 use hooke_mesh::generators;
 use hooke_solvers::{
     BackwardEulerStep, CholeskyParams, Newton, NewtonParams, NewtonProblem, Relaxation,
-    RelaxationWork, SparseCholesky, StopReason,
+    SparseCholesky, StopReason,
 };
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -77,6 +77,9 @@ proptest! {
         focus_share in prop_oneof![Just(0.0), 0.01f64..1.0],
         focus_rings in 0usize..3,
         focus_sweeps in 0usize..4,
+        region_share in prop_oneof![Just(0.0), 0.01f64..1.0],
+        region_rings in 0usize..4,
+        region_iterations in 1usize..4,
     ) {
         let relaxation = Relaxation {
             sweeps,
@@ -84,6 +87,9 @@ proptest! {
             focus_share,
             focus_rings,
             focus_sweeps,
+            region_share,
+            region_rings,
+            region_iterations,
             ..Relaxation::default()
         };
         prop_assume!(!relaxation.is_none());
@@ -103,7 +109,25 @@ proptest! {
                 prop_assert_eq!(region, focused);
             }
         } else {
-            prop_assert_eq!(work, RelaxationWork { sweeps, focused_sweeps: 0, block_visits: sweeps * free });
+            prop_assert_eq!(work.focused_sweeps, 0);
+            prop_assert_eq!(work.block_visits, sweeps * free);
+        }
+        // The elimination solves one region (its hottest blocks and their rings) in at most its
+        // iteration limit, with at least one factorisation per iteration.
+        let region = relaxation.region_blocks(free);
+        if region > 0 {
+            prop_assert_eq!(work.region_solves, 1, "{:?}", work);
+            prop_assert!((region..=free).contains(&work.region_blocks), "{work:?}");
+            if region_rings == 0 {
+                prop_assert_eq!(work.region_blocks, region);
+            }
+            prop_assert!(work.region_iterations <= region_iterations, "{work:?}");
+            prop_assert!(work.region_factorizations >= work.region_iterations, "{work:?}");
+        } else {
+            prop_assert_eq!(
+                (work.region_solves, work.region_blocks, work.region_iterations),
+                (0, 0, 0)
+            );
         }
         prop_assert!(x.iter().all(|v| v.is_finite()));
         // Every generated start is waved (its springs are off rest), so it is never a minimiser and
@@ -201,7 +225,7 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
         focus_share: 1.0 / free as f64,
         focus_rings: 1,
         focus_sweeps: 5,
-        ..Relaxation::default()
+        ..Relaxation::default().without_region()
     };
     let before = x.clone();
     let mut gradient = vec![0.0; x.len()];
