@@ -319,10 +319,18 @@ impl Runner {
                             report.shifted_steps, report.failed_factorizations
                         )
                     });
-                let note = match (note, shifted) {
-                    (Some(a), Some(b)) => Some(format!("{a}; {b}")),
-                    (a, b) => a.or(b),
-                };
+                let regions = (report.region_solves > 0).then(|| {
+                    format!(
+                        "{} region solve(s): {} inner iterations, {} factorisations",
+                        report.region_solves,
+                        report.region_iterations,
+                        report.region_factorizations
+                    )
+                });
+                let note = [note, shifted, regions]
+                    .into_iter()
+                    .flatten()
+                    .reduce(|a, b| format!("{a}; {b}"));
                 Ok(RunResult {
                     positions: objective.positions(unknowns).to_vec(),
                     iterations: report.iterations,

@@ -541,7 +541,7 @@ mod tests {
     #[test]
     fn a_halved_step_moves_the_pins_along_their_path() {
         // cloth-8 crushed to 1 % with one pin moving at constant velocity: Newton does not finish
-        // the whole step and halves it.
+        // the whole step within 8 iterations (it needs 20 with the default relaxation) and halves it.
         let n = 8;
         let mesh = generators::cloth(n, 1e3).unwrap();
         let h = 1.0 / 30.0;
@@ -562,7 +562,7 @@ mod tests {
             targets[moving] = start + shift * (t / h);
         };
         let params = NewtonParams {
-            max_iterations: 30,
+            max_iterations: 8,
             ..NewtonParams::default()
         };
         let mut integrator = BackwardEuler::newton(&scene, params, Default::default()).unwrap();

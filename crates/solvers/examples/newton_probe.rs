@@ -58,7 +58,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
     let initial_shift = setting("HOOKE_INITIAL_SHIFT", defaults.initial_shift)?;
-    let exact_retry = setting("HOOKE_EXACT_RETRY", defaults.exact_retry)?;
     let mesh = generators::cloth(n, 1e3)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
@@ -75,7 +74,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         shift_factor,
         blend_factor,
         initial_shift,
-        exact_retry,
         ..Default::default()
     };
     // HOOKE_DEFINITENESS=clamped: factor the clamped Hessian in every iteration instead.

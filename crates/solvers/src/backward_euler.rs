@@ -14,6 +14,9 @@ use crate::{Newton, NewtonError, NewtonParams, NewtonProblem, Relaxation, Relaxa
 /// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
 const RELAX_ARMIJO: f64 = 1e-4;
 const RELAX_HALVINGS: usize = 20;
+/// The nonlinear elimination stops a region's solve at this many times its gradient's rounding
+/// error ([`NewtonProblem::gradient_round_off`]).
+const REGION_NOISE_FACTOR: f64 = 8.0;
 
 /// ½ k (|r + Δr| − l)² − ½ k (|r| − l)², written without subtracting two rounded energies:
 /// (|r_t| − |r|)(|r_t| + |r| − 2l) k/2 with |r_t| − |r| = Δr·(2r + Δr)/(|r_t| + |r|).
@@ -714,8 +717,18 @@ impl<const D: usize> BackwardEulerStep<D> {
             step.set_dashpot(self.dashpot, &gather(&self.dashpot_start));
         }
         step.definiteness = self.definiteness;
+        // Aim no lower than the gradient's rounding error: below it there is nothing to eliminate
+        // (a region of round-off, e.g. a rigidly moving cloth, is left alone).
+        let mut gradient = vec![0.0; unknowns.len()];
+        step.gradient(&unknowns, &mut gradient);
+        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+        let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&unknowns);
+        if !(norm > floor) {
+            self.focus_region = region;
+            return;
+        }
         let params = NewtonParams {
-            tolerance: relaxation.region_tolerance,
+            tolerance: relaxation.region_tolerance.max(floor / norm),
             max_iterations: relaxation.region_iterations,
             relaxation: relaxation.without_region(),
             ..NewtonParams::default()

@@ -25,7 +25,10 @@
 //! [`Relaxation`]): for backward Euler, 10 Gauss–Seidel sweeps in which each free vertex takes up to
 //! 3 line-searched Newton steps on Φ with the others held, which never raises Φ, then up to 50
 //! focused sweeps over the 1/256 of the vertices with the largest gradients and two rings of their
-//! neighbours; skipped after an exact Newton step taken in full whose decrease of Φ matches its
+//! neighbours, then a nonlinear elimination: the 1/64 of the vertices with the largest gradients
+//! and three rings of their neighbours (on cloth-160 2,000–4,000 of 25,600 vertices) are solved
+//! together by an inner Newton to 1e-6 of their gradient, everything else held
+//! ([`Relaxation::region_share`]); all of it skipped after an exact Newton step taken in full whose decrease of Φ matches its
 //! quadratic model within 2 % ([`Relaxation::trusted_model`]), where Newton needs no help (a solid
 //! that does not buckle never relaxes). This is what makes buckling cloth converge fast. The quadratic model of Φ holds only
 //! within a tiny distance of each iterate there: a displacement δ turns a spring's block by about
@@ -38,6 +41,36 @@
 //! iterations, which is what the focused sweeps are for. The relaxation is serial and costs about
 //! half a factorisation per iteration on cloth-160 (7–9 s of a 20–26 s solve) and, in proportion,
 //! more on small meshes (about 60 % of a cloth-40 step).
+//!
+//! The elimination is what brought cloth-160's speed-vs-error step within issue 4's bound of 25
+//! iterations on every state measured. A fold is a collective mode of hundreds of vertices: a
+//! vertex sweep moves it only as fast as information crosses the fold, and the focused sweeps'
+//! 100 vertices and two rings are too few to hold it. Measured with `newton_probe`
+//! (release, every step to 1e-10, two processes at once):
+//!
+//! | | default | without the elimination (`region_share: 0.0`) |
+//! |---|---|---|
+//! | cloth-160, speed-vs-error step from state D (below) | 14 iterations (13 to 1e-8), 25 factorisations + 124 in 13 regions, 22.1 s | 31 (30), 53, 34.7 s |
+//! | the same from state E, the one this default makes in `newton_probe` | 13 (12), 23 + 100, 32.4 s | — |
+//! | the same in `hooke bench cloth-160`, on the state it makes with this default | 11 to 1e-8, 15.5 s | — |
+//! | cloth-160, steps 1–8 from rest | 105 iterations (7, 12, 15, 21, 10, 8, 19, 13) | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
+//! | cloth-40, steps 1–12 from rest | 72 iterations, 1.9 s | 73, 2.5 s |
+//! | cloth-40, speed-vs-error step | 6 (6), 80 ms | 7 (6), 130 ms |
+//!
+//! The elimination's inner solves cost about as much as the outer factorisations (on cloth-160's
+//! step from E 15 s relaxing, sweeps included, against 15 s factoring). The two states' solutions
+//! differ: from D, Φ* = 2.8597989e-4 kg·m² with the elimination against 2.8597908e-4 without: two
+//! stationary points of the same buckling step, which has several solutions; the path decides
+//! which one Newton finds.
+//!
+//! Tried with the elimination and not kept: trying the exact Hessian first after a blended step
+//! taken in full whose decrease of Φ the exact Hessian's model gᵀΔ + ½ΔᵀHΔ predicted within
+//! 10 % (13 to 1e-8 on D, unchanged; 10 instead of 12 on E); the elimination without the vertex
+//! sweeps (17 on D); a region of the focused sweeps' size, 1/256 and two rings, solved to 1e-3
+//! or 1e-8 (26 and 29 on D); the inner solves without a relaxation of their own (13 on D, 11 on
+//! E, 18.9 s against 22.1 s on D, but 27 instead of 20 on the hardest step from rest, the 4th).
+//!
+//! The tables below are from before the elimination (its settings otherwise the default's).
 //!
 //! Measured with `newton_probe` (release; cloth-N of SCENES.md, each step to a relative gradient of
 //! 1e-10; "to 1e-8" is the requirement of issue 4). Three cloth-160 states saved by earlier probe
@@ -59,7 +92,8 @@
 //!
 //! (a): two probes running at once; the other times with one.
 //!
-//! `hooke bench cloth-160` computes its own state with this default, state D (its ten exact steps
+//! `hooke bench cloth-160` computed its own state with the default without the elimination,
+//! state D (its ten exact steps
 //! took 8, 24, 21, 33, 10, 11, 20, 19, 35 and 22 iterations), and takes 30 iterations to 1e-8 on
 //! it, 41.3 s (benches/README.md); relaxing after every step, 28 on D and 19 on that setting's own
 //! bench state (24.0 s); without focused sweeps either, 23 on its own. A buckling step has
@@ -119,7 +153,7 @@ use std::time::{Duration, Instant};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
-use crate::operator::{dot, LinearOperator};
+use crate::operator::dot;
 use crate::report::StopReason;
 
 /// A line-searched step that lowers Φ by at most this many units of round-off (ε|Φ|) counts as no
@@ -333,12 +367,6 @@ pub struct NewtonParams {
     pub blend_factor: f64,
     /// Above this shift the solve gives up (the problem is not convex enough to fix). Default 1e12.
     pub max_shift: f64,
-    /// After a blended or shifted step taken in full whose decrease of Φ agrees with the *exact*
-    /// Hessian's quadratic model, gᵀΔ + ½ ΔᵀHΔ, within this relative tolerance, the next iteration
-    /// tries the exact Hessian first (falling back to the lowered weight if it is not positive
-    /// definite; the attempt is counted as failed): the exact model is valid over a whole step,
-    /// so the blend only slows convergence. 0: never (the weight falls one step at a time).
-    pub exact_retry: f64,
     /// What to do when the unshifted matrix is indefinite. Default
     /// [`IndefinitePolicy::NewtonIfDescent`].
     pub indefinite: IndefinitePolicy,
@@ -378,7 +406,6 @@ impl Default for NewtonParams {
             shift_factor: 10.0,
             blend_factor: 3.0,
             max_shift: 1e12,
-            exact_retry: 0.0,
             indefinite: IndefinitePolicy::ConvexBlend,
             relaxation: Relaxation::default(),
             cholesky: CholeskyParams::default(),
@@ -802,9 +829,6 @@ impl Newton {
             r
         };
         let mut gradient = g0 * scale;
-        // Set when this iteration tries the exact Hessian first ([`NewtonParams::exact_retry`]): the
-        // weight to fall back to.
-        let mut retry_fallback: Option<f64> = None;
         loop {
             if !(phi.is_finite() && gradient.is_finite()) {
                 return Err(NewtonError::NonFinite {
@@ -873,10 +897,6 @@ impl Newton {
                     }
                 }
                 failed += 1;
-                if let Some(fallback) = retry_fallback.take() {
-                    self.shift = fallback;
-                    continue;
-                }
                 let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
                     match self.search_definite_shift(problem, x, &mut report, &mut failed)? {
                         Some(held) => {
@@ -898,16 +918,8 @@ impl Newton {
                 }
             };
             report.failed_factorizations += failed;
-            retry_fallback = None;
             let Accepted { alpha, change } = accepted;
             x.copy_from_slice(&self.trial);
-            // Whether the exact Hessian's model predicted a regularised full step's decrease.
-            let exact_model_holds = p.exact_retry > 0.0 && self.shift > 0.0 && alpha == 1.0 && {
-                let hessian = SparseColMatRef::new(problem.pattern(), &self.hessian);
-                hessian.apply(&self.step, &mut self.trial);
-                let predicted = step_slope + 0.5 * dot(&self.step, &self.trial);
-                predicted < 0.0 && (change / predicted - 1.0).abs() <= p.exact_retry
-            };
             // The quadratic model of an exact, positive definite Newton step predicts the change
             // ½ gᵀΔ; agreement within the tolerance means Newton is in its quadratic regime.
             let trusted = p.relaxation.trusted_model > 0.0
@@ -957,13 +969,7 @@ impl Newton {
             }
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.
             if alpha == 1.0 {
-                let lowered = self.lower_shift(p.indefinite);
-                if exact_model_holds && lowered > 0.0 {
-                    retry_fallback = Some(lowered);
-                    self.shift = 0.0;
-                } else {
-                    self.shift = lowered;
-                }
+                self.shift = self.lower_shift(p.indefinite);
             } else if alpha < 0.25 {
                 self.shift = self.raise_shift(p.indefinite).min(p.max_shift);
             }
