@@ -96,6 +96,9 @@ pub struct BackwardEulerStep<const D: usize> {
     focus_heat: Vec<(f64, u32)>,
     focus_region: Vec<u32>,
     focus_mark: Vec<bool>,
+    /// The elimination's map from a vertex to its number in the region's problem (u32::MAX: not
+    /// in it; all u32::MAX between calls).
+    region_local: Vec<u32>,
     /// The lengths of one vertex's springs, for the relaxation's line search.
     incident_lengths: Vec<f64>,
     definiteness: Definiteness,
@@ -191,6 +194,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             focus_heat: Vec::with_capacity(free.free_count()),
             focus_region: Vec::with_capacity(free.free_count()),
             focus_mark: vec![false; n],
+            region_local: vec![u32::MAX; n],
             incident_lengths: vec![0.0; max_degree],
             definiteness: Definiteness::Exact,
             h,
@@ -669,8 +673,9 @@ impl<const D: usize> BackwardEulerStep<D> {
     fn relax_region(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
         self.select_hottest(count, relaxation.region_rings);
         let region = std::mem::take(&mut self.focus_region);
-        // Local numbering: the region in index order, then the held ends of its boundary springs.
-        let mut local = vec![u32::MAX; self.x.len()];
+        // Local numbering: the region in index order, then the held ends of its boundary springs
+        // (`region_local` is u32::MAX everywhere between calls).
+        let mut local = std::mem::take(&mut self.region_local);
         let mut vertices: Vec<u32> = region.clone();
         for (k, &v) in region.iter().enumerate() {
             local[v as usize] = k as u32;
@@ -702,6 +707,10 @@ impl<const D: usize> BackwardEulerStep<D> {
             vertices.iter().map(|&v| values[v as usize]).collect()
         };
         let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
+        for &v in &vertices {
+            local[v as usize] = u32::MAX;
+        }
+        self.region_local = local;
         let Ok(free) = FreeDofs::new(vertices.len(), &held) else {
             self.focus_region = region;
             return;
@@ -723,7 +732,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         step.gradient(&unknowns, &mut gradient);
         let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
         let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&unknowns);
-        if !(norm > floor) {
+        // (NaN norms, too: nothing finite to solve.)
+        if norm.is_nan() || norm <= floor {
             self.focus_region = region;
             return;
         }
