@@ -10,7 +10,7 @@
 //! `HOOKE_BLEND_FACTOR` and `HOOKE_INITIAL_SHIFT` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
-//! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k); `HOOKE_DEFINITENESS=clamped`
+//! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k) (`HOOKE_DT`: another h than 1/30 s before the division; `HOOKE_STIFFNESS`: another k than 1e3 N/m); `HOOKE_DEFINITENESS=clamped`
 //! factors the clamped Hessian in every iteration. `HOOKE_EIG=1` prints the inertia of the Hessian
 //! at the last step's solution and its smallest generalised eigenvalues λ (H v = λ M v, in units of
 //! the masses), by inverse iteration. `HOOKE_SPRINGS=1` prints the distribution of |r|/l over
@@ -52,17 +52,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         trusted_model: setting("HOOKE_TRUSTED_MODEL", r.trusted_model)?,
         region_share: setting("HOOKE_REGION_SHARE", r.region_share)?,
         region_rings: setting("HOOKE_REGION_RINGS", r.region_rings)?,
+        region_concentration: setting("HOOKE_REGION_CONCENTRATION", r.region_concentration)?,
         region_tolerance: setting("HOOKE_REGION_TOLERANCE", r.region_tolerance)?,
         region_iterations: setting("HOOKE_REGION_ITERATIONS", r.region_iterations)?,
+        region_sweeps: setting("HOOKE_REGION_SWEEPS", r.region_sweeps)?,
     };
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
     let initial_shift = setting("HOOKE_INITIAL_SHIFT", defaults.initial_shift)?;
-    let mesh = generators::cloth(n, 1e3)?;
+    // HOOKE_STIFFNESS=k (N/m) and HOOKE_DT=h (s): SCENES.md's stiff variant (1e5) or its h = 1/5.
+    let mesh = generators::cloth(n, setting("HOOKE_STIFFNESS", 1e3)?)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
     let substeps: f64 = setting("HOOKE_SUBSTEPS", 1.0)?;
-    let h = 1.0 / (30.0 * substeps);
+    let h = setting("HOOKE_DT", 1.0 / 30.0)? / substeps;
     let gravity = Vector3::new(0.0, -9.81, 0.0);
     let free = FreeDofs::new(mesh.vertex_count(), &pinned)?;
     let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
@@ -137,7 +140,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
              {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits, {} skipped), \
-             {} regions ({} vertices, {} inner iterations, {} inner factorizations), {:.2?} \
+             {} regions, {} skipped ({} vertices, {} inner iterations, {} inner factorizations), {:.2?} \
              ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,
@@ -151,6 +154,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             r.relaxed_blocks,
             r.skipped_relaxations,
             r.region_solves,
+            r.skipped_regions,
             r.region_blocks,
             r.region_iterations,
             r.region_factorizations,

@@ -9,7 +9,9 @@ use hooke_assembly::{
 use hooke_mesh::Spring;
 use nalgebra::{SMatrix, SVector};
 
-use crate::{Newton, NewtonError, NewtonParams, NewtonProblem, Relaxation, RelaxationWork};
+use crate::{
+    Newton, NewtonError, NewtonParams, NewtonProblem, NewtonReport, Relaxation, RelaxationWork,
+};
 
 /// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
 const RELAX_ARMIJO: f64 = 1e-4;
@@ -583,8 +585,6 @@ impl<const D: usize> BackwardEulerStep<D> {
         }
     }
 
-    /// The focused sweeps of [`NewtonProblem::relax`] over the `count` hottest free vertices and
-    /// their rings, added to `work`.
     /// Select the `count` free vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and
     /// `rings` rings of their free spring neighbours into `focus_region` (sorted), and return the
     /// squared gradient norm of the hottest vertex left out (0 if none is).
@@ -635,6 +635,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         threshold
     }
 
+    /// The focused sweeps of [`NewtonProblem::relax`] over the `count` hottest free vertices and
+    /// their rings, added to `work`.
     fn relax_focused(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
         // The sweeps stop once no selected vertex is hotter than the hottest one left out.
         let threshold = self.select_hottest(count, relaxation.focus_rings);
@@ -661,10 +663,13 @@ impl<const D: usize> BackwardEulerStep<D> {
 
     /// The nonlinear elimination of [`Relaxation::region_share`]: the `count` hottest free vertices
     /// and their rings are solved together by an inner [`Newton`] on Φ as a function of their
-    /// positions, every other vertex held (the region's springs, with the held ends of its
-    /// boundary springs as pinned vertices of a small [`BackwardEulerStep`]), added to `work`.
+    /// positions, every other vertex held ([`BackwardEulerStep::region_problem`]), added to `work`.
     /// Every accepted inner step and relaxation lowers Φ, so Φ never rises; an inner solve that
-    /// fails keeps its last accepted iterate (or, on non-finite values, the region's start).
+    /// fails keeps its last accepted iterate (or, on non-finite values, the region's start). The
+    /// solve aims no lower than its gradient's rounding error. A region is not solved (and counted
+    /// as skipped) where its hottest blocks carry less than [`Relaxation::region_concentration`]
+    /// of ‖∇Φ‖² (the error is spread out, not in a fold) or its gradient is round-off (a rigidly
+    /// moving cloth): there is nothing to eliminate.
     ///
     /// Builds the region's problem and its symbolic analysis anew on every call: the region
     /// changes from one call to the next, and with it the sparsity pattern. This is the one place
@@ -672,17 +677,71 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// own iterations do not).
     fn relax_region(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
         self.select_hottest(count, relaxation.region_rings);
+        // The hottest blocks come first in `focus_heat`.
+        let total: f64 = self.focus_heat.iter().map(|&(heat, _)| heat).sum();
+        let hottest: f64 = self.focus_heat[..count].iter().map(|&(heat, _)| heat).sum();
+        if hottest < relaxation.region_concentration * total || total.is_nan() {
+            work.skipped_regions += 1;
+            return;
+        }
         let region = std::mem::take(&mut self.focus_region);
-        // Local numbering: the region in index order, then the held ends of its boundary springs
-        // (`region_local` is u32::MAX everywhere between calls).
+        if let Some(report) = self.solve_region(&region, relaxation) {
+            work.region_solves += 1;
+            work.region_blocks += region.len();
+            work.region_iterations += report.iterations;
+            work.region_factorizations += report.factorizations;
+        } else {
+            work.skipped_regions += 1;
+        }
+        self.focus_region = region;
+    }
+
+    /// Solve `region` (sorted free vertices) as [`BackwardEulerStep::relax_region`] describes,
+    /// moving its vertices in `x`; the inner solve's report, or `None` if it was not solved.
+    fn solve_region(&mut self, region: &[u32], relaxation: Relaxation) -> Option<NewtonReport> {
+        let (mut step, mut unknowns) = self.region_problem(region)?;
+        let mut gradient = vec![0.0; unknowns.len()];
+        step.gradient(&unknowns, &mut gradient);
+        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+        let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&unknowns);
+        // (A NaN norm, too: nothing finite to solve.)
+        if norm.is_nan() || norm <= floor {
+            return None;
+        }
+        let params = NewtonParams {
+            tolerance: relaxation.region_tolerance.max(floor / norm),
+            max_iterations: relaxation.region_iterations,
+            relaxation: relaxation.inner(),
+            ..NewtonParams::default()
+        };
+        let mut newton = Newton::new(step.pattern(), params).ok()?;
+        let report = match newton.minimize(&mut step, &mut unknowns) {
+            Ok(report) => report,
+            Err(NewtonError::LineSearchFailed { report })
+            | Err(NewtonError::NotPositiveDefinite { report, .. }) => *report,
+            Err(_) => return None,
+        };
+        for (k, &v) in region.iter().enumerate() {
+            self.x[v as usize] = SVector::from_column_slice(&unknowns[D * k..D * k + D]);
+        }
+        Some(report)
+    }
+
+    /// Φ as a function of the positions of `region` (sorted free vertices), the others held: a
+    /// small [`BackwardEulerStep`] over the region's springs, whose held ends are its pinned
+    /// vertices (numbered after the region's), with the same masses, target, dashpot and
+    /// definiteness, and its unknowns at the region's current positions. `None` if the region
+    /// leaves nothing free.
+    fn region_problem(&mut self, region: &[u32]) -> Option<(BackwardEulerStep<D>, Vec<f64>)> {
+        // `region_local` is u32::MAX everywhere between calls.
         let mut local = std::mem::take(&mut self.region_local);
-        let mut vertices: Vec<u32> = region.clone();
+        let mut vertices = region.to_vec();
         for (k, &v) in region.iter().enumerate() {
             local[v as usize] = k as u32;
         }
         let mut springs = Vec::new();
         let mut held = Vec::new();
-        for &v in &region {
+        for &v in region {
             let v = v as usize;
             for &(s, other) in &self.incident[self.incident_start[v]..self.incident_start[v + 1]] {
                 let o = other as usize;
@@ -692,7 +751,7 @@ impl<const D: usize> BackwardEulerStep<D> {
                     vertices.push(other);
                 }
                 // Each spring once: from its lower end in the region, or from its only end there.
-                if (o as u32) < (v as u32) && (local[o] as usize) < region.len() {
+                if o < v && (local[o] as usize) < region.len() {
                     continue;
                 }
                 let spring = self.springs[s as usize];
@@ -703,18 +762,15 @@ impl<const D: usize> BackwardEulerStep<D> {
                 });
             }
         }
-        let gather = |values: &[SVector<f64, D>]| -> Vec<SVector<f64, D>> {
-            vertices.iter().map(|&v| values[v as usize]).collect()
-        };
-        let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
         for &v in &vertices {
             local[v as usize] = u32::MAX;
         }
         self.region_local = local;
-        let Ok(free) = FreeDofs::new(vertices.len(), &held) else {
-            self.focus_region = region;
-            return;
+        let gather = |values: &[SVector<f64, D>]| -> Vec<SVector<f64, D>> {
+            vertices.iter().map(|&v| values[v as usize]).collect()
         };
+        let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
+        let free = FreeDofs::new(vertices.len(), &held).ok()?;
         let mut step = BackwardEulerStep::<D>::new(&springs, &masses, free, self.h);
         let positions = gather(&self.x);
         let mut unknowns = vec![0.0; step.dim()];
@@ -726,44 +782,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             step.set_dashpot(self.dashpot, &gather(&self.dashpot_start));
         }
         step.definiteness = self.definiteness;
-        // Aim no lower than the gradient's rounding error: below it there is nothing to eliminate
-        // (a region of round-off, e.g. a rigidly moving cloth, is left alone).
-        let mut gradient = vec![0.0; unknowns.len()];
-        step.gradient(&unknowns, &mut gradient);
-        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
-        let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&unknowns);
-        // (NaN norms, too: nothing finite to solve.)
-        if norm.is_nan() || norm <= floor {
-            self.focus_region = region;
-            return;
-        }
-        let params = NewtonParams {
-            tolerance: relaxation.region_tolerance.max(floor / norm),
-            max_iterations: relaxation.region_iterations,
-            relaxation: relaxation.without_region(),
-            ..NewtonParams::default()
-        };
-        let Ok(mut newton) = Newton::new(step.pattern(), params) else {
-            self.focus_region = region;
-            return;
-        };
-        let report = match newton.minimize(&mut step, &mut unknowns) {
-            Ok(report) => Some(report),
-            Err(NewtonError::NonFinite { .. }) => None,
-            Err(NewtonError::LineSearchFailed { report })
-            | Err(NewtonError::NotPositiveDefinite { report, .. }) => Some(*report),
-            Err(_) => None,
-        };
-        if let Some(report) = report {
-            for (k, &v) in region.iter().enumerate() {
-                self.x[v as usize] = SVector::from_column_slice(&unknowns[D * k..D * k + D]);
-            }
-            work.region_solves += 1;
-            work.region_blocks += region.len();
-            work.region_iterations += report.iterations;
-            work.region_factorizations += report.factorizations;
-        }
-        self.focus_region = region;
+        Some((step, unknowns))
     }
 
     /// ∂Φ/∂x_v and, if `BLOCK`, v's diagonal 3×3 block of the clamped Hessian of Φ (else zero) and

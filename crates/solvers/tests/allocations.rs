@@ -144,6 +144,8 @@ fn solvers_do_not_allocate_per_iteration() {
             let relaxation = Relaxation {
                 region_iterations,
                 region_tolerance: 0.0,
+                // Solve the region however its error is spread.
+                region_concentration: 0.0,
                 ..Relaxation::default()
             };
             let mut x = start.clone();
