@@ -28,7 +28,9 @@
 //! neighbours, then a nonlinear elimination: the 1/64 of the vertices with the largest gradients
 //! and three rings of their neighbours (on cloth-160 2,000–4,000 of 25,600 vertices) are solved
 //! together by an inner Newton to 1e-6 of their gradient, everything else held
-//! ([`Relaxation::region_share`]); all of it skipped after an exact Newton step taken in full whose decrease of Φ matches its
+//! ([`Relaxation::region_share`]), where those vertices carry at least half of ‖∇Φ‖²
+//! ([`Relaxation::region_concentration`]: a fold, not error spread over the sheet); all of it
+//! skipped after an exact Newton step taken in full whose decrease of Φ matches its
 //! quadratic model within 2 % ([`Relaxation::trusted_model`]), where Newton needs no help (a solid
 //! that does not buckle never relaxes). This is what makes buckling cloth converge fast. The quadratic model of Φ holds only
 //! within a tiny distance of each iterate there: a displacement δ turns a spring's block by about
@@ -46,19 +48,27 @@
 //! iterations on every state measured. A fold is a collective mode of hundreds of vertices: a
 //! vertex sweep moves it only as fast as information crosses the fold, and the focused sweeps'
 //! 100 vertices and two rings are too few to hold it. Measured with `newton_probe`
-//! (release, every step to 1e-10, two processes at once):
+//! (release, every step to 1e-10; the cloth-160 runs with at most one other job on the second
+//! core):
 //!
 //! | | default | without the elimination (`region_share: 0.0`) |
 //! |---|---|---|
-//! | cloth-160, speed-vs-error step from state D (below) | 14 iterations (13 to 1e-8), 25 factorisations + 124 in 13 regions, 22.1 s | 31 (30), 53, 34.7 s |
-//! | the same from state E, the one this default makes in `newton_probe` | 13 (12), 23 + 100, 32.4 s | — |
-//! | the same in `hooke bench cloth-160`, on the state it makes with this default | 10 to 1e-8, 16.9 s (alone) | 30, 41.3 s, on its own state |
-//! | cloth-160, steps 1–8 from rest | 105 iterations (7, 12, 15, 21, 10, 8, 19, 13) | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
-//! | cloth-40, steps 1–12 from rest | 72 iterations, 1.9 s | 73, 2.5 s |
-//! | cloth-40, speed-vs-error step | 6 (6), 80 ms | 7 (6), 130 ms |
+//! | cloth-160, speed-vs-error step from state D (below) | 14 iterations (13 to 1e-8), 25 factorisations + 111 in 11 regions, 21.9 s | 31 (30), 53, 34.7 s |
+//! | the same from state E, made by this default before `region_concentration` | 13 (12), 23 + 91 in 11 regions, 18.9 s | — |
+//! | the same from the state this default makes in `newton_probe` | 13 (13), 17.8 s | — |
+//! | the same in `hooke bench cloth-160`, on the state it makes with this default | 11 to 1e-8, 14.9 s, 18 factorisations + 82 in 9 regions | 30, 41.3 s, on its own state (D) |
+//! | cloth-160, steps 1–8 from rest | 103 iterations (7, 12, 13, 22, 11, 13, 13, 12) | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
+//! | cloth-40, steps 1–12 from rest | 73 iterations, 1.55 s | 73, 2.5 s |
+//! | cloth-40, speed-vs-error step | 6 (5), 87 ms | 7 (6), 130 ms |
+//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | 42, 45, 28, 19 iterations, 7.1 s | 40, 45, 33, 19, 4.7 s |
 //!
-//! The elimination's inner solves cost about as much as the outer factorisations (on cloth-160's
-//! step from E 15 s relaxing, sweeps included, against 15 s factoring). The two states' solutions
+//! Without `region_concentration` (every region solved), the stiff cloth's steps took 38, 39, 22
+//! and 18 iterations but 17.1 s: its error is spread over the sheet (the hottest 1/64 carry
+//! 11–57 % of ‖∇Φ‖², against 55–98 % on cloth-160's buckling step), and solving a quarter of the
+//! sheet 30 times per step cost 4× the rest of the solve.
+//!
+//! The relaxation with its region solves costs about as much as the outer factorisations (on
+//! cloth-160's step from E 8.9 s relaxing, sweeps included, against 8.9 s factoring). The two states' solutions
 //! differ: from D, Φ* = 2.8597989e-4 kg·m² with the elimination against 2.8597908e-4 without: two
 //! stationary points of the same buckling step, which has several solutions; the path decides
 //! which one Newton finds.
@@ -75,7 +85,7 @@
 //! Measured with `newton_probe` (release; cloth-N of SCENES.md, each step to a relative gradient of
 //! 1e-10; "to 1e-8" is the requirement of issue 4). Three cloth-160 states saved by earlier probe
 //! runs (`HOOKE_STATE`): A and C made by earlier Newton versions, B by the default without focused
-//! sweeps, D by this default (the same as `hooke bench cloth-160`'s).
+//! sweeps, D by that default (the same as `hooke bench cloth-160`'s then).
 //!
 //! | | default | always relaxing (`trusted_model: 0.0`) | no focused sweeps either | NewtonIfDescent, no relaxation |
 //! |---|---|---|---|---|
