@@ -1,4 +1,4 @@
-//! The kernels of hooke's implicit solvers, on cloth-40, cloth-160, cloth-320 and beam-8, generated
+//! The kernels of hooke's implicit solvers, on cloth-40, cloth-80, cloth-160, cloth-320 and beam-8, generated
 //! in code (SCENES.md; nothing is downloaded):
 //!
 //! - numeric factorisation (`SparseCholesky`) of PD's scalar matrix K(M + h²L)Kᵀ (Cholesky) and of
@@ -124,7 +124,7 @@ fn kernels(c: &mut Criterion) {
     // The set-up (patterns, factorisations, the interleaved PD measurement) runs before
     // criterion's name filter applies: choose scenes with HOOKE_BENCH_SCENES to skip it.
     let chosen = std::env::var("HOOKE_BENCH_SCENES").ok();
-    for name in ["cloth-40", "cloth-160", "cloth-320", "beam-8"] {
+    for name in ["cloth-40", "cloth-80", "cloth-160", "cloth-320", "beam-8"] {
         if chosen
             .as_deref()
             .is_none_or(|list| list.split(',').any(|s| s.trim() == name))
