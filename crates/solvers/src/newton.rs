@@ -324,10 +324,7 @@ impl Relaxation {
     /// How many of `blocks` blocks the region of the nonlinear elimination starts from:
     /// ⌈share · blocks⌉, at most `blocks`, and 0 if there is no elimination.
     pub fn region_blocks(&self, blocks: usize) -> usize {
-        if self.region_iterations == 0 || self.region_share.is_nan() || self.region_share <= 0.0 {
-            return 0;
-        }
-        ((self.region_share.min(1.0) * blocks as f64).ceil() as usize).min(blocks)
+        share_of(self.region_share, self.region_iterations > 0, blocks)
     }
 
     /// This relaxation without the elimination.
@@ -350,11 +347,17 @@ impl Relaxation {
     /// How many of `blocks` blocks the focused sweeps select: ⌈share · blocks⌉, at most `blocks`,
     /// and 0 if there are no focused sweeps.
     pub fn focused_blocks(&self, blocks: usize) -> usize {
-        if self.focus_sweeps == 0 || self.focus_share.is_nan() || self.focus_share <= 0.0 {
-            return 0;
-        }
-        ((self.focus_share.min(1.0) * blocks as f64).ceil() as usize).min(blocks)
+        share_of(self.focus_share, self.focus_sweeps > 0, blocks)
     }
+}
+
+/// ⌈share · blocks⌉ blocks, at most `blocks`; 0 if not `enabled` or the share is not positive
+/// (NaN included).
+fn share_of(share: f64, enabled: bool, blocks: usize) -> usize {
+    if !enabled || share.is_nan() || share <= 0.0 {
+        return 0;
+    }
+    ((share.min(1.0) * blocks as f64).ceil() as usize).min(blocks)
 }
 
 /// What one call of [`NewtonProblem::relax`] did.
