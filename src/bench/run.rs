@@ -321,7 +321,7 @@ impl Runner {
                     });
                 let regions = (report.region_solves > 0).then(|| {
                     format!(
-                        "{} region solve(s): {} inner iterations, {} factorisations",
+                        "{} patch solve(s): {} inner iterations, {} factorisations",
                         report.region_solves,
                         report.region_iterations,
                         report.region_factorizations

@@ -333,9 +333,10 @@ fn solve_reference(
 // The version in MAGIC stands for the exact solves' algorithm: a buckling step has more than one
 // solution, and a changed Newton may pick another one, so it is bumped whenever Newton's default
 // changes (03: convex blend and relaxation; 04: focused relaxation sweeps; 05: no relaxation after trusted exact steps;
-// 06: nonlinear elimination of the hottest region).
+// 06: nonlinear elimination of the hottest region; 07: the elimination over a fixed cover of
+// patches).
 
-const MAGIC: &[u8; 12] = b"HOOKEBENCH06";
+const MAGIC: &[u8; 12] = b"HOOKEBENCH07";
 
 /// FNV-1a, 64 bit.
 struct Fnv(u64);

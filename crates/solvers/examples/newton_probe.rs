@@ -7,7 +7,7 @@
 //! (`policy`: `shift` or `descent` for `IndefinitePolicy::Shift` or `NewtonIfDescent` instead of
 //! the default `ConvexBlend`; `HOOKE_SWEEPS`, `HOOKE_BLOCK_ITERATIONS`, `HOOKE_FOCUS_SHARE`,
 //! `HOOKE_FOCUS_RINGS`, `HOOKE_FOCUS_SWEEPS`, `HOOKE_TRUSTED_MODEL`, `HOOKE_SHIFT_FACTOR`,
-//! `HOOKE_BLEND_FACTOR` and `HOOKE_INITIAL_SHIFT` override those settings). With `HOOKE_STATE=file` the
+//! `HOOKE_BLEND_FACTOR`, `HOOKE_INITIAL_SHIFT` and `HOOKE_REGION_*`, `HOOKE_PATCH_SHARE` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
 //! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
 //! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k) (`HOOKE_DT`: another h than 1/30 s before the division; `HOOKE_STIFFNESS`: another k than 1e3 N/m); `HOOKE_DEFINITENESS=clamped`
@@ -51,7 +51,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         focus_sweeps: setting("HOOKE_FOCUS_SWEEPS", r.focus_sweeps)?,
         trusted_model: setting("HOOKE_TRUSTED_MODEL", r.trusted_model)?,
         region_share: setting("HOOKE_REGION_SHARE", r.region_share)?,
+        patch_share: setting("HOOKE_PATCH_SHARE", r.patch_share)?,
         region_rings: setting("HOOKE_REGION_RINGS", r.region_rings)?,
+        region_coverage: setting("HOOKE_REGION_COVERAGE", r.region_coverage)?,
         region_concentration: setting("HOOKE_REGION_CONCENTRATION", r.region_concentration)?,
         region_tolerance: setting("HOOKE_REGION_TOLERANCE", r.region_tolerance)?,
         region_iterations: setting("HOOKE_REGION_ITERATIONS", r.region_iterations)?,
@@ -140,7 +142,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!(
             "step {s}: {} iterations ({to_1e8} to 1e-8), {:?}, gradient {:.2e}, {} shifted, \
              {} indefinite, {} failed attempts, {} factorizations, {} sweeps + {} focused ({} block visits, {} skipped), \
-             {} regions, {} skipped ({} vertices, {} inner iterations, {} inner factorizations), {:.2?} \
+             {} patches, {} skipped ({} vertices, {} inner iterations, {} inner factorizations), {:.2?} \
              ({:.2?} factoring, {:.2?} relaxing)",
             r.iterations,
             r.stop,

@@ -9,9 +9,10 @@ use hooke_assembly::{
 use hooke_mesh::Spring;
 use nalgebra::{SMatrix, SVector};
 
-use crate::{
-    Newton, NewtonError, NewtonParams, NewtonProblem, NewtonReport, Relaxation, RelaxationWork,
-};
+use crate::{NewtonProblem, Relaxation, RelaxationWork};
+
+mod patches;
+use patches::PatchCover;
 
 /// Armijo constant and step halvings of a vertex's line search in [`NewtonProblem::relax`].
 const RELAX_ARMIJO: f64 = 1e-4;
@@ -101,6 +102,8 @@ pub struct BackwardEulerStep<const D: usize> {
     /// The elimination's map from a vertex to its number in the region's problem (u32::MAX: not
     /// in it; all u32::MAX between calls).
     region_local: Vec<u32>,
+    /// The elimination's patches, built once by [`NewtonProblem::prepare_relaxation`].
+    patches: Option<Box<PatchCover<D>>>,
     /// The lengths of one vertex's springs, for the relaxation's line search.
     incident_lengths: Vec<f64>,
     definiteness: Definiteness,
@@ -197,6 +200,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             focus_region: Vec::with_capacity(free.free_count()),
             focus_mark: vec![false; n],
             region_local: vec![u32::MAX; n],
+            patches: None,
             incident_lengths: vec![0.0; max_degree],
             definiteness: Definiteness::Exact,
             h,
@@ -508,6 +512,24 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     /// [`Relaxation`]): the vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and their
     /// rings of spring neighbours, swept in index order. Serial, hence deterministic. The pinned
     /// vertices, and with counter-forces the pinned unknowns, stay where they are.
+    /// Build the elimination's patches for `relaxation` (see [`Relaxation::region_share`]) unless
+    /// they are built for its settings already, or there is no elimination.
+    fn prepare_relaxation(&mut self, relaxation: Relaxation) {
+        if relaxation.region_blocks(self.free.free_count()) == 0 {
+            return;
+        }
+        if self
+            .patches
+            .as_ref()
+            .is_some_and(|cover| cover.is_for(&relaxation))
+        {
+            return;
+        }
+        self.patches = None;
+        let cover = self.build_cover(&relaxation);
+        self.patches = Some(Box::new(cover));
+    }
+
     fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
         self.expand(xf);
         let mut work = RelaxationWork::default();
@@ -609,23 +631,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             self.focus_mark[v as usize] = true;
             region.push(v);
         }
-        let mut ring_start = 0;
-        for _ in 0..rings {
-            let ring_end = region.len();
-            for i in ring_start..ring_end {
-                let v = region[i] as usize;
-                for &(_, other) in
-                    &self.incident[self.incident_start[v]..self.incident_start[v + 1]]
-                {
-                    let o = other as usize;
-                    if !self.focus_mark[o] && !self.free.is_pinned(o) {
-                        self.focus_mark[o] = true;
-                        region.push(other);
-                    }
-                }
-            }
-            ring_start = ring_end;
-        }
+        self.grow_rings(&mut region, rings);
         region.sort_unstable();
         for &v in &region {
             self.focus_mark[v as usize] = false;
@@ -661,22 +667,13 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.focus_region = region;
     }
 
-    /// The nonlinear elimination of [`Relaxation::region_share`]: the `count` hottest free vertices
-    /// and their rings are solved together by an inner [`Newton`] on Φ as a function of their
-    /// positions, every other vertex held ([`BackwardEulerStep::region_problem`]), added to `work`.
-    /// Every accepted inner step and relaxation lowers Φ, so Φ never rises; an inner solve that
-    /// fails keeps its last accepted iterate (or, on non-finite values, the region's start). The
-    /// solve aims no lower than its gradient's rounding error. A region is not solved (and counted
-    /// as skipped) where its hottest blocks carry less than [`Relaxation::region_concentration`]
-    /// of ‖∇Φ‖² (the error is spread out, not in a fold) or its gradient is round-off (a rigidly
-    /// moving cloth): there is nothing to eliminate.
-    ///
-    /// Builds the region's problem and its symbolic analysis anew on every call: the region
-    /// changes from one call to the next, and with it the sparsity pattern. This is the one place
-    /// where a Newton iteration allocates (O(region) memory, once per iteration; the inner solve's
-    /// own iterations do not).
+    /// The nonlinear elimination of [`Relaxation::region_share`] over the patches (see the
+    /// `patches` module), added to `work`. It is skipped (and counted as such) where the `count`
+    /// hottest blocks carry less than [`Relaxation::region_concentration`] of ‖∇Φ‖²: the error
+    /// is spread out, not in a fold. Builds the patches if
+    /// [`NewtonProblem::prepare_relaxation`] has not (the one case in which it allocates).
     fn relax_region(&mut self, count: usize, relaxation: Relaxation, work: &mut RelaxationWork) {
-        self.select_hottest(count, relaxation.region_rings);
+        self.select_hottest(count, 0);
         // The hottest blocks come first in `focus_heat`.
         let total: f64 = self.focus_heat.iter().map(|&(heat, _)| heat).sum();
         let hottest: f64 = self.focus_heat[..count].iter().map(|&(heat, _)| heat).sum();
@@ -684,105 +681,12 @@ impl<const D: usize> BackwardEulerStep<D> {
             work.skipped_regions += 1;
             return;
         }
-        let region = std::mem::take(&mut self.focus_region);
-        if let Some(report) = self.solve_region(&region, relaxation) {
-            work.region_solves += 1;
-            work.region_blocks += region.len();
-            work.region_iterations += report.iterations;
-            work.region_factorizations += report.factorizations;
-        } else {
-            work.skipped_regions += 1;
-        }
-        self.focus_region = region;
-    }
-
-    /// Solve `region` (sorted free vertices) as [`BackwardEulerStep::relax_region`] describes,
-    /// moving its vertices in `x`; the inner solve's report, or `None` if it was not solved.
-    fn solve_region(&mut self, region: &[u32], relaxation: Relaxation) -> Option<NewtonReport> {
-        let (mut step, mut unknowns) = self.region_problem(region)?;
-        let mut gradient = vec![0.0; unknowns.len()];
-        step.gradient(&unknowns, &mut gradient);
-        let norm = gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
-        let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&unknowns);
-        // (A NaN norm, too: nothing finite to solve.)
-        if norm.is_nan() || norm <= floor {
-            return None;
-        }
-        let params = NewtonParams {
-            tolerance: relaxation.region_tolerance.max(floor / norm),
-            max_iterations: relaxation.region_iterations,
-            relaxation: relaxation.inner(),
-            ..NewtonParams::default()
+        self.prepare_relaxation(relaxation);
+        let Some(mut cover) = self.patches.take() else {
+            return;
         };
-        let mut newton = Newton::new(step.pattern(), params).ok()?;
-        let report = match newton.minimize(&mut step, &mut unknowns) {
-            Ok(report) => report,
-            Err(NewtonError::LineSearchFailed { report })
-            | Err(NewtonError::NotPositiveDefinite { report, .. }) => *report,
-            Err(_) => return None,
-        };
-        for (k, &v) in region.iter().enumerate() {
-            self.x[v as usize] = SVector::from_column_slice(&unknowns[D * k..D * k + D]);
-        }
-        Some(report)
-    }
-
-    /// Φ as a function of the positions of `region` (sorted free vertices), the others held: a
-    /// small [`BackwardEulerStep`] over the region's springs, whose held ends are its pinned
-    /// vertices (numbered after the region's), with the same masses, target, dashpot and
-    /// definiteness, and its unknowns at the region's current positions. `None` if the region
-    /// leaves nothing free.
-    fn region_problem(&mut self, region: &[u32]) -> Option<(BackwardEulerStep<D>, Vec<f64>)> {
-        // `region_local` is u32::MAX everywhere between calls.
-        let mut local = std::mem::take(&mut self.region_local);
-        let mut vertices = region.to_vec();
-        for (k, &v) in region.iter().enumerate() {
-            local[v as usize] = k as u32;
-        }
-        let mut springs = Vec::new();
-        let mut held = Vec::new();
-        for &v in region {
-            let v = v as usize;
-            for &(s, other) in &self.incident[self.incident_start[v]..self.incident_start[v + 1]] {
-                let o = other as usize;
-                if local[o] == u32::MAX {
-                    local[o] = vertices.len() as u32;
-                    held.push(vertices.len() as u32);
-                    vertices.push(other);
-                }
-                // Each spring once: from its lower end in the region, or from its only end there.
-                if o < v && (local[o] as usize) < region.len() {
-                    continue;
-                }
-                let spring = self.springs[s as usize];
-                springs.push(Spring {
-                    i: local[spring.i as usize],
-                    j: local[spring.j as usize],
-                    ..spring
-                });
-            }
-        }
-        for &v in &vertices {
-            local[v as usize] = u32::MAX;
-        }
-        self.region_local = local;
-        let gather = |values: &[SVector<f64, D>]| -> Vec<SVector<f64, D>> {
-            vertices.iter().map(|&v| values[v as usize]).collect()
-        };
-        let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
-        let free = FreeDofs::new(vertices.len(), &held).ok()?;
-        let mut step = BackwardEulerStep::<D>::new(&springs, &masses, free, self.h);
-        let positions = gather(&self.x);
-        let mut unknowns = vec![0.0; step.dim()];
-        step.set_step(&gather(&self.y), &positions, &mut unknowns);
-        for (k, p) in positions[..region.len()].iter().enumerate() {
-            unknowns[D * k..D * k + D].copy_from_slice(p.as_slice());
-        }
-        if self.dashpot > 0.0 {
-            step.set_dashpot(self.dashpot, &gather(&self.dashpot_start));
-        }
-        step.definiteness = self.definiteness;
-        Some((step, unknowns))
+        self.eliminate(&mut cover, count, relaxation, work);
+        self.patches = Some(cover);
     }
 
     /// ∂Φ/∂x_v and, if `BLOCK`, v's diagonal 3×3 block of the clamped Hessian of Φ (else zero) and

@@ -25,11 +25,11 @@
 //! [`Relaxation`]): for backward Euler, 10 Gauss–Seidel sweeps in which each free vertex takes up to
 //! 3 line-searched Newton steps on Φ with the others held, which never raises Φ, then up to 50
 //! focused sweeps over the 1/256 of the vertices with the largest gradients and two rings of their
-//! neighbours, then a nonlinear elimination: the 1/64 of the vertices with the largest gradients
-//! and three rings of their neighbours (on cloth-160 2,000–4,000 of 25,600 vertices) are solved
-//! together by an inner Newton to 1e-6 of their gradient, everything else held
-//! ([`Relaxation::region_share`]), where those vertices carry at least half of ‖∇Φ‖²
-//! ([`Relaxation::region_concentration`]: a fold, not error spread over the sheet); all of it
+//! neighbours, then a nonlinear elimination ([`Relaxation::region_share`]): where the 1/64 of the
+//! vertices with the largest gradients carry at least half of ‖∇Φ‖²
+//! ([`Relaxation::region_concentration`]: a fold, not error spread over the sheet), the patches
+//! of a fixed cover that hold them (cells of 1/32 of the vertices with three rings of neighbours)
+//! are solved in turn by an inner Newton to 1e-6 of their gradient, everything else held; all of it
 //! skipped after an exact Newton step taken in full whose decrease of Φ matches its
 //! quadratic model within 2 % ([`Relaxation::trusted_model`]), where Newton needs no help (a solid
 //! that does not buckle never relaxes). This is what makes buckling cloth converge fast. The quadratic model of Φ holds only
@@ -47,33 +47,45 @@
 //! The elimination is what brought cloth-160's speed-vs-error step within issue 4's bound of 25
 //! iterations on every state measured. A fold is a collective mode of hundreds of vertices: a
 //! vertex sweep moves it only as fast as information crosses the fold, and the focused sweeps'
-//! 100 vertices and two rings are too few to hold it. Measured with `newton_probe`
-//! (release, every step to 1e-10; the cloth-160 runs with at most one other job on the second
-//! core):
+//! 100 vertices and two rings are too few to hold it.
 //!
-//! | | default | without the elimination (`region_share: 0.0`) |
-//! |---|---|---|
-//! | cloth-160, speed-vs-error step from state D (below) | 14 iterations (13 to 1e-8), 25 factorisations + 111 in 11 regions, 21.9 s | 31 (30), 53, 34.7 s |
-//! | the same from state E, made by this default before `region_concentration` | 13 (12), 23 + 91 in 11 regions, 18.9 s | — |
-//! | the same from the state this default makes in `newton_probe` | 13 (13), 17.8 s | — |
-//! | the same in `hooke bench cloth-160`, on the state it makes with this default | 11 to 1e-8, 14.9 s, 18 factorisations + 82 in 9 regions | 30, 41.3 s, on its own state (D) |
-//! | cloth-160, steps 1–8 from rest | 103 iterations (7, 12, 13, 22, 11, 13, 13, 12) | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
-//! | cloth-40, steps 1–12 from rest | 73 iterations, 1.55 s | 73, 2.5 s |
-//! | cloth-40, speed-vs-error step | 6 (5), 87 ms | 7 (6), 130 ms |
-//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | 42, 45, 28, 19 iterations, 7.1 s | 40, 45, 33, 19, 4.7 s |
+//! Its patches are fixed so that it allocates nothing: each patch's problem and symbolic
+//! factorisation are built once per problem ([`NewtonProblem::prepare_relaxation`]). The cells are
+//! graph Voronoi cells of farthest-point seeds; the patches are chosen greedily, the one holding
+//! the most of the selected vertices' heat that no solved patch holds first, until the solved
+//! ones hold 90 % of it ([`Relaxation::region_coverage`]), so that a fold across two cells is
+//! solved in one patch where the overlap holds it. An earlier version solved the hottest 1/64 and
+//! three rings of their neighbours as one region, whose pattern, and so whose problem and symbolic
+//! analysis, changed in every iteration; the table compares the two. Measured with `newton_probe`
+//! (release, every step to 1e-10; one job at a time):
 //!
-//! Without `region_concentration` (every region solved), the stiff cloth's steps took 38, 39, 22
-//! and 18 iterations but 17.1 s: its error is spread over the sheet (the hottest 1/64 carry
-//! 11–57 % of ‖∇Φ‖², against 55–98 % on cloth-160's buckling step), and solving a quarter of the
-//! sheet 30 times per step cost 4× the rest of the solve.
+//! | | default (fixed patches) | the region of the hottest vertices | without the elimination (`region_share: 0.0`) |
+//! |---|---|---|---|
+//! | cloth-160, speed-vs-error step from state D (below) | 12 iterations (11 to 1e-8), 19 factorisations + 161 in 29 patches, 19.2 s | 14 (13), 25 + 111 in 11 regions, 21.9 s | 31 (30), 53, 34.7 s |
+//! | the same from state E, made by the region version before `region_concentration` | 13 (12), 20 + 196 in 32 patches, 19.5 s | 13 (12), 23 + 91, 18.9 s | — |
+//! | the same from the state the region version makes in `newton_probe` | 14 (13), 21 + 222 in 42 patches, 21.3 s | 13 (13), 19.0 s | — |
+//! | cloth-160, steps 1–8 from rest | 97 iterations (7, 11, 13, 18, 9, 13, 14, 12), 151 s | 103 (7, 12, 13, 22, 11, 13, 13, 12), 176 s | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
+//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | STIFF | 42, 45, 28, 19 iterations, 7.1 s | 40, 45, 33, 19, 4.7 s |
 //!
-//! The relaxation with its region solves costs about as much as the outer factorisations (on
-//! cloth-160's step from E 8.9 s relaxing, sweeps included, against 8.9 s factoring). The two states' solutions
-//! differ: from D, Φ* = 2.8597989e-4 kg·m² with the elimination against 2.8597908e-4 without: two
-//! stationary points of the same buckling step, which has several solutions; the path decides
-//! which one Newton finds.
+//! The cover's cell size was chosen on the three cloth-160 states (iterations to 1e-10 on D, E and
+//! the probe's own state; wall time summed): cells of 1/8 (with the cells solved in order of their
+//! heat rather than greedily) 11 on D but 36 s; 1/16: 14, 15, 12, 91 s; 1/32: 12, 13, 14, 60 s;
+//! 1/64: 15, 11, 14, 61 s (the region version: 14, 13, 13, 60 s). With 1/16 cells, solving to
+//! 60 % coverage and to 1e-3 gave 17, 15, 14 in 76 s, and 3 inner sweeps instead of 10 gave 14,
+//! 15, 14 in 77 s (not tried with 1/32); one ring of overlap instead of three (1/8 cells, in heat
+//! order) took 16 iterations on D.
 //!
-//! Tried with the elimination and not kept: trying the exact Hessian first after a blended step
+//! Without `region_concentration` (every elimination done), the region version's stiff cloth
+//! steps took 38, 39, 22 and 18 iterations but 17.1 s: its error is spread over the sheet (the
+//! hottest 1/64 carry 11–57 % of ‖∇Φ‖², against 55–98 % on cloth-160's buckling step), and
+//! solving a quarter of the sheet 30 times per step cost 4× the rest of the solve.
+//!
+//! The relaxation with its patch solves costs about as much as the outer factorisations (on
+//! cloth-160's step from D 9.8 s relaxing, sweeps included, against 8.0 s factoring). A buckling
+//! step has several solutions, and the path decides which one Newton finds: from D, Φ* =
+//! 2.8597989e-4 kg·m² with the region version against 2.8597908e-4 without the elimination.
+//!
+//! Tried with the region version and not kept: trying the exact Hessian first after a blended step
 //! taken in full whose decrease of Φ the exact Hessian's model gᵀΔ + ½ΔᵀHΔ predicted within
 //! 10 % (13 to 1e-8 on D, unchanged; 10 instead of 12 on E); the elimination without the vertex
 //! sweeps (17 on D); a region of the focused sweeps' size, 1/256 and two rings, solved to 1e-3
@@ -217,6 +229,11 @@ pub trait NewtonProblem {
     fn relax(&mut self, _x: &mut [f64], _relaxation: Relaxation) -> Option<RelaxationWork> {
         None
     }
+    /// Get ready to [`NewtonProblem::relax`] with `relaxation`: build once what it needs (for
+    /// backward Euler, the elimination's patches and their symbolic analyses), so that relaxing
+    /// allocates nothing. [`Newton::minimize`] calls it before its first iteration. The default
+    /// does nothing.
+    fn prepare_relaxation(&mut self, _relaxation: Relaxation) {}
 }
 
 /// Nonlinear relaxation between Newton steps ([`NewtonProblem::relax`]): Gauss–Seidel sweeps of block
@@ -253,28 +270,39 @@ pub struct Relaxation {
     /// tolerance: the model is trusted there, and Newton converges quadratically without help
     /// (0: never skip). Default 0.02. A solid that does not buckle (beam-4) then never relaxes.
     pub trusted_model: f64,
-    /// Nonlinear elimination of a region after the sweeps: the share of the blocks with the
-    /// largest gradients (rounded up to a whole block; 0, a negative value or NaN: none), with
-    /// [`Relaxation::region_rings`] rings of neighbours, is solved as one problem, everything else
-    /// held, by an inner [`Newton`] with the relaxation [`Relaxation::inner`] (no region of its own). A fold
-    /// is a collective mode of many vertices that single-vertex sweeps move only slowly; solving
-    /// the region together removes it, and the outer Newton steps are left with the smooth part.
-    /// Default 1/64 (400 of cloth-160's 25,598 free vertices; with their rings 2,000–3,600).
+    /// Nonlinear elimination after the sweeps: the share of the blocks with the largest
+    /// gradients (rounded up to a whole block; 0, a negative value or NaN: none) selects patches
+    /// of a fixed cover of the blocks, and each selected patch is solved as one problem,
+    /// everything else held, by an inner [`Newton`] with the relaxation [`Relaxation::inner`] (no
+    /// elimination of its own). A fold is a collective mode of many vertices that single-vertex
+    /// sweeps move only slowly; solving its patches removes it, and the outer Newton steps are
+    /// left with the smooth part. The patches are cells of [`Relaxation::patch_share`] of the
+    /// blocks with [`Relaxation::region_rings`] rings of neighbours, built with their symbolic
+    /// factorisations once per problem ([`NewtonProblem::prepare_relaxation`]), so an elimination
+    /// allocates nothing. Default 1/64 (400 of cloth-160's 25,598 free vertices).
     pub region_share: f64,
-    /// Rings of neighbouring blocks added around the region's hottest blocks. Default 3.
+    /// The size of the cover's cells, as a share of the blocks (rounded up to a whole block; at
+    /// least one block). Default 1/32 (800 of cloth-160's free vertices, about 1,500 with their
+    /// rings).
+    pub patch_share: f64,
+    /// Rings of neighbouring blocks added around each cell to make its patch (its overlap with
+    /// the neighbouring patches). Default 3.
     pub region_rings: usize,
-    /// Solve the region only where the error is concentrated: when its hottest blocks (before the
-    /// rings) carry at least this share of ‖∇Φ‖². Default 0.5. Measured: on cloth-160's buckling
+    /// The patches are solved hottest cell first until the cells solved hold this share of the
+    /// selected blocks' ‖∇Φ‖². Default 0.9.
+    pub region_coverage: f64,
+    /// Eliminate only where the error is concentrated: when the selected blocks carry at least
+    /// this share of ‖∇Φ‖². Default 0.5. Measured: on cloth-160's buckling
     /// step they carry 55–98 %, the fold the elimination is for; on cloth-40 stiff (k = 1e5 N/m)
     /// at h = 1/5 s 11–57 %, mostly below 40 %, where the error is spread over the sheet and the
     /// region solves cost 4× the rest of the solve without saving iterations.
     pub region_concentration: f64,
-    /// The inner Newton's tolerance on the region's gradient, relative to the region's gradient
-    /// at the start of the solve. Default 1e-6.
+    /// The inner Newton's tolerance on a patch's gradient, relative to the patch's gradient at the
+    /// start of its solve. Default 1e-6.
     pub region_tolerance: f64,
     /// The inner Newton's iteration limit. Default 30.
     pub region_iterations: usize,
-    /// Sweeps over the region's blocks in the inner Newton's own relaxation (its other settings
+    /// Sweeps over a patch's blocks in the inner Newton's own relaxation (its other settings
     /// are these). Default 10.
     pub region_sweeps: usize,
 }
@@ -289,7 +317,9 @@ impl Default for Relaxation {
             focus_sweeps: 50,
             trusted_model: 0.02,
             region_share: 1.0 / 64.0,
+            patch_share: 1.0 / 32.0,
             region_rings: 3,
+            region_coverage: 0.9,
             region_concentration: 0.5,
             region_tolerance: 1e-6,
             region_iterations: 30,
@@ -308,7 +338,9 @@ impl Relaxation {
         focus_sweeps: 0,
         trusted_model: 0.0,
         region_share: 0.0,
+        patch_share: 0.0,
         region_rings: 0,
+        region_coverage: 0.0,
         region_concentration: 0.0,
         region_tolerance: 0.0,
         region_iterations: 0,
@@ -321,13 +353,13 @@ impl Relaxation {
             && self.region_blocks(1) == 0
     }
 
-    /// How many of `blocks` blocks the region of the nonlinear elimination starts from:
+    /// How many of `blocks` blocks the nonlinear elimination selects (the hottest ones):
     /// ⌈share · blocks⌉, at most `blocks`, and 0 if there is no elimination.
     pub fn region_blocks(&self, blocks: usize) -> usize {
         share_of(self.region_share, self.region_iterations > 0, blocks)
     }
 
-    /// This relaxation without the elimination.
+    /// This relaxation without the nonlinear elimination.
     pub fn without_region(self) -> Relaxation {
         Relaxation {
             region_share: 0.0,
@@ -336,12 +368,18 @@ impl Relaxation {
     }
 
     /// The relaxation an inner solve of the elimination uses: this one with
-    /// [`Relaxation::region_sweeps`] sweeps and without a region.
+    /// [`Relaxation::region_sweeps`] sweeps and without an elimination.
     pub fn inner(self) -> Relaxation {
         Relaxation {
             sweeps: self.region_sweeps,
             ..self.without_region()
         }
+    }
+
+    /// How many of `blocks` blocks a cell of the elimination's cover holds: ⌈share · blocks⌉, at
+    /// most `blocks` (0 for a share that is not positive).
+    pub fn patch_blocks(&self, blocks: usize) -> usize {
+        share_of(self.patch_share, true, blocks)
     }
 
     /// How many of `blocks` blocks the focused sweeps select: ⌈share · blocks⌉, at most `blocks`,
@@ -370,12 +408,13 @@ pub struct RelaxationWork {
     /// Block visits in all (each one up to [`Relaxation::block_iterations`] Newton steps): the
     /// work, in units of one block's relaxation.
     pub block_visits: usize,
-    /// Regions solved by the nonlinear elimination ([`Relaxation::region_share`]): 0 or 1.
+    /// Patches solved by the nonlinear elimination ([`Relaxation::region_share`]).
     pub region_solves: usize,
-    /// Regions selected but not solved: their error was not concentrated
-    /// ([`Relaxation::region_concentration`]) or was round-off. 0 or 1.
+    /// Eliminations skipped because the error was not concentrated
+    /// ([`Relaxation::region_concentration`]), and patches selected but not solved because their
+    /// gradient was round-off.
     pub skipped_regions: usize,
-    /// Blocks in the region solved (with its rings).
+    /// Blocks in the patches solved (with their rings), summed over the patches.
     pub region_blocks: usize,
     /// The inner Newton's iterations.
     pub region_iterations: usize,
@@ -498,13 +537,13 @@ pub struct NewtonReport {
     pub focused_sweeps: usize,
     /// Block visits of the relaxation in all, full and focused sweeps together.
     pub relaxed_blocks: usize,
-    /// Regions solved by the nonlinear elimination ([`Relaxation::region_share`]), in all.
+    /// Patches solved by the nonlinear elimination ([`Relaxation::region_share`]), in all.
     pub region_solves: usize,
-    /// Regions selected but not solved (see [`RelaxationWork::skipped_regions`]), in all.
+    /// Eliminations and patches skipped (see [`RelaxationWork::skipped_regions`]), in all.
     pub skipped_regions: usize,
-    /// Blocks in those regions, summed over the solves.
+    /// Blocks in the patches solved, summed over the solves.
     pub region_blocks: usize,
-    /// Iterations of the inner Newton solves of the regions, in all (not counted in
+    /// Iterations of the inner Newton solves of the patches, in all (not counted in
     /// [`NewtonReport::iterations`]).
     pub region_iterations: usize,
     /// Numeric factorisations of the inner solves (not counted in
@@ -521,6 +560,44 @@ pub struct NewtonReport {
 }
 
 impl NewtonReport {
+    /// An empty report whose history has room for `iterations` records.
+    pub(crate) fn with_capacity(iterations: usize) -> Self {
+        NewtonReport {
+            iterations: 0,
+            initial_gradient: 1.0,
+            initial_objective: 0.0,
+            history: Vec::with_capacity(iterations),
+            shifted_steps: 0,
+            indefinite_steps: 0,
+            failed_factorizations: 0,
+            factorizations: 0,
+            relaxation_sweeps: 0,
+            skipped_relaxations: 0,
+            focused_sweeps: 0,
+            relaxed_blocks: 0,
+            region_solves: 0,
+            skipped_regions: 0,
+            region_blocks: 0,
+            region_iterations: 0,
+            region_factorizations: 0,
+            relaxation_time: Duration::ZERO,
+            stop: StopReason::IterationLimit,
+            wall_time: Duration::ZERO,
+            factor_time: Duration::ZERO,
+        }
+    }
+
+    /// Empty this report for a solve starting at Φ = `objective`, keeping the history's capacity.
+    fn reset(&mut self, objective: f64) {
+        let mut history = std::mem::take(&mut self.history);
+        history.clear();
+        *self = NewtonReport {
+            initial_objective: objective,
+            history,
+            ..NewtonReport::with_capacity(0)
+        };
+    }
+
     /// The last relative gradient norm.
     pub fn gradient(&self) -> f64 {
         self.history
@@ -556,6 +633,30 @@ pub enum NewtonError {
     /// The Hessian does not have the analysed pattern, or its analysis failed.
     #[error(transparent)]
     Factorization(#[from] CholeskyError),
+}
+
+/// Why [`Newton::minimize_into`] failed; [`NewtonError`] without the report.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Failure {
+    LineSearchFailed,
+    NotPositiveDefinite { max_shift: f64 },
+    NonFinite,
+    Factorization(CholeskyError),
+}
+
+impl Failure {
+    /// The error, carrying `report`.
+    fn with_report(self, report: NewtonReport) -> NewtonError {
+        let report = Box::new(report);
+        match self {
+            Failure::LineSearchFailed => NewtonError::LineSearchFailed { report },
+            Failure::NotPositiveDefinite { max_shift } => {
+                NewtonError::NotPositiveDefinite { max_shift, report }
+            }
+            Failure::NonFinite => NewtonError::NonFinite { report },
+            Failure::Factorization(e) => NewtonError::Factorization(e),
+        }
+    }
 }
 
 /// Newton's method with its workspace (factorisation, vectors, the Hessian and shifted value
@@ -681,7 +782,7 @@ impl Newton {
         x: &[f64],
         report: &mut NewtonReport,
         failed: &mut usize,
-    ) -> Result<Option<bool>, NewtonError> {
+    ) -> Result<Option<bool>, Failure> {
         let policy = IndefinitePolicy::ConvexBlend;
         let (initial, factor, max_shift) = (
             self.params.initial_shift,
@@ -710,7 +811,7 @@ impl Newton {
             match this.factor_at_shift(problem, x, policy, report) {
                 Ok(inertia) => Ok(inertia.is_positive_definite()),
                 Err(CholeskyError::Singular { .. }) => Ok(false),
-                Err(e) => Err(NewtonError::from(e)),
+                Err(e) => Err(Failure::Factorization(e)),
             }
         };
         // The first weight of at least 1: the convexified Hessian itself (plus D beyond), definite
@@ -822,6 +923,24 @@ impl Newton {
         problem: &mut impl NewtonProblem,
         x: &mut [f64],
     ) -> Result<NewtonReport, NewtonError> {
+        let mut report = NewtonReport::with_capacity(self.params.max_iterations);
+        match self.minimize_into(problem, x, &mut report) {
+            Ok(()) => Ok(report),
+            Err(failure) => Err(failure.with_report(report)),
+        }
+    }
+
+    /// [`Newton::minimize`] into `report`, which is reset first and whose history keeps its
+    /// capacity: with a report made once (of capacity [`NewtonParams::max_iterations`]), a solve
+    /// allocates nothing. For the inner solves of the relaxation's elimination; on failure the
+    /// report holds the account so far.
+    #[track_caller]
+    pub(crate) fn minimize_into(
+        &mut self,
+        problem: &mut impl NewtonProblem,
+        x: &mut [f64],
+        report: &mut NewtonReport,
+    ) -> Result<(), Failure> {
         let n = problem.dim();
         assert_eq!(x.len(), n, "unknowns");
         assert_eq!(
@@ -834,53 +953,34 @@ impl Newton {
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
         }
+        if !p.relaxation.is_none() {
+            problem.prepare_relaxation(p.relaxation);
+        }
         let mut phi = problem.objective(x);
         problem.gradient(x, &mut self.g);
         let g0 = dot(&self.g, &self.g).sqrt();
         let scale = if g0 > 0.0 { 1.0 / g0 } else { 1.0 };
-        let mut report = NewtonReport {
-            iterations: 0,
-            initial_gradient: 1.0,
-            initial_objective: phi,
-            history: Vec::with_capacity(p.max_iterations),
-            shifted_steps: 0,
-            indefinite_steps: 0,
-            failed_factorizations: 0,
-            factorizations: 0,
-            relaxation_sweeps: 0,
-            skipped_relaxations: 0,
-            focused_sweeps: 0,
-            relaxed_blocks: 0,
-            region_solves: 0,
-            skipped_regions: 0,
-            region_blocks: 0,
-            region_iterations: 0,
-            region_factorizations: 0,
-            relaxation_time: Duration::ZERO,
-            stop: StopReason::IterationLimit,
-            wall_time: Duration::ZERO,
-            factor_time: Duration::ZERO,
-        };
+        report.reset(phi);
         // Every solve starts from the exact Hessian: a shift earned in an earlier solve says nothing
         // about this one.
         self.shift = 0.0;
-        let finish = |mut r: NewtonReport, stop| {
+        let finish = |r: &mut NewtonReport, stop| {
             r.stop = stop;
             r.wall_time = start.elapsed();
-            r
         };
         let mut gradient = g0 * scale;
         loop {
             if !(phi.is_finite() && gradient.is_finite()) {
-                return Err(NewtonError::NonFinite {
-                    report: Box::new(finish(report, StopReason::IterationLimit)),
-                });
+                finish(report, StopReason::IterationLimit);
+                return Err(Failure::NonFinite);
             }
             if gradient <= p.tolerance || g0 == 0.0 {
-                return Ok(finish(report, StopReason::Converged));
+                finish(report, StopReason::Converged);
+                return Ok(());
             }
             if report.iterations >= p.max_iterations {
-                return Ok(finish(report, StopReason::IterationLimit));
+                finish(report, StopReason::IterationLimit);
+                return Ok(());
             }
             {
                 let h = problem.hessian(x);
@@ -901,13 +1001,13 @@ impl Newton {
                     held_definite = false;
                     Some(0)
                 } else {
-                    match self.factor_at_shift(problem, x, p.indefinite, &mut report) {
+                    match self.factor_at_shift(problem, x, p.indefinite, report) {
                         Ok(inertia) if inertia.is_positive_definite() => Some(0),
                         Ok(inertia) if p.indefinite == IndefinitePolicy::NewtonIfDescent => {
                             Some(inertia.negative)
                         }
                         Ok(_) | Err(CholeskyError::Singular { .. }) => None,
-                        Err(e) => return Err(e.into()),
+                        Err(e) => return Err(Failure::Factorization(e)),
                     }
                 };
                 if let Some(negative) = negative {
@@ -929,17 +1029,17 @@ impl Newton {
                             let noise = problem.gradient_round_off(x);
                             let norm = dot(&self.g, &self.g).sqrt();
                             if norm <= noise {
-                                return Ok(finish(report, StopReason::Stagnated));
+                                finish(report, StopReason::Stagnated);
+                                return Ok(());
                             }
-                            return Err(NewtonError::LineSearchFailed {
-                                report: Box::new(finish(report, StopReason::IterationLimit)),
-                            });
+                            finish(report, StopReason::IterationLimit);
+                            return Err(Failure::LineSearchFailed);
                         }
                     }
                 }
                 failed += 1;
                 let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
-                    match self.search_definite_shift(problem, x, &mut report, &mut failed)? {
+                    match self.search_definite_shift(problem, x, report, &mut failed)? {
                         Some(held) => {
                             held_definite = held;
                             false
@@ -952,9 +1052,9 @@ impl Newton {
                 };
                 if exhausted {
                     report.failed_factorizations += failed;
-                    return Err(NewtonError::NotPositiveDefinite {
+                    finish(report, StopReason::IterationLimit);
+                    return Err(Failure::NotPositiveDefinite {
                         max_shift: p.max_shift,
-                        report: Box::new(finish(report, StopReason::IterationLimit)),
                     });
                 }
             };
@@ -1007,7 +1107,8 @@ impl Newton {
                 step_length: alpha,
             });
             if stagnated {
-                return Ok(finish(report, StopReason::Stagnated));
+                finish(report, StopReason::Stagnated);
+                return Ok(());
             }
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.
             if alpha == 1.0 {

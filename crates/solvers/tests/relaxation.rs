@@ -78,7 +78,9 @@ proptest! {
         focus_rings in 0usize..3,
         focus_sweeps in 0usize..4,
         region_share in prop_oneof![Just(0.0), 0.01f64..1.0],
+        patch_share in 0.05f64..1.2,
         region_rings in 0usize..4,
+        region_coverage in 0.1f64..1.0,
         region_iterations in 1usize..4,
         concentrated in any::<bool>(),
     ) {
@@ -89,7 +91,9 @@ proptest! {
             focus_rings,
             focus_sweeps,
             region_share,
+            patch_share,
             region_rings,
+            region_coverage,
             region_iterations,
             // 0: every region counts as concentrated; above 1: none does.
             region_concentration: if concentrated { 0.0 } else { 1.5 },
@@ -115,18 +119,25 @@ proptest! {
             prop_assert_eq!(work.focused_sweeps, 0);
             prop_assert_eq!(work.block_visits, sweeps * free);
         }
-        // The elimination solves one region (its hottest blocks and their rings) in at most its
-        // iteration limit, with at least one factorisation per iteration.
+        // The elimination solves at least one patch (a cell and its rings), each in at most the
+        // iteration limit with at least one factorisation per iteration; a single cell (a share of
+        // 1 or more) is every free block.
         let region = relaxation.region_blocks(free);
         if region > 0 && !concentrated {
             prop_assert_eq!((work.region_solves, work.skipped_regions), (0, 1));
         } else if region > 0 {
-            prop_assert_eq!(work.region_solves, 1, "{:?}", work);
-            prop_assert!((region..=free).contains(&work.region_blocks), "{work:?}");
-            if region_rings == 0 {
-                prop_assert_eq!(work.region_blocks, region);
+            prop_assert!(work.region_solves >= 1, "{:?}", work);
+            prop_assert!(
+                (work.region_solves..=work.region_solves * free).contains(&work.region_blocks),
+                "{work:?}"
+            );
+            if patch_share >= 1.0 {
+                prop_assert_eq!((work.region_solves, work.region_blocks), (1, free));
             }
-            prop_assert!(work.region_iterations <= region_iterations, "{work:?}");
+            prop_assert!(
+                work.region_iterations <= work.region_solves * region_iterations,
+                "{work:?}"
+            );
             prop_assert!(work.region_factorizations >= work.region_iterations, "{work:?}");
         } else {
             prop_assert_eq!(
@@ -346,10 +357,10 @@ fn trusted_exact_steps_skip_the_relaxation() {
     }
 }
 
-/// A region whose gradient is round-off is not solved: a cloth moving rigidly (every spring at
+/// A patch whose gradient is round-off is not solved: a cloth moving rigidly (every spring at
 /// its rest length, y the rest positions translated, pins moved along) has nothing to eliminate,
 /// and the inner Newton would only chase the rounding of its gradient. With the cloth off its
-/// minimiser the same region is solved.
+/// minimiser the same patches are solved.
 #[test]
 fn the_elimination_leaves_a_region_of_round_off_alone() {
     let n = 8;
@@ -365,13 +376,13 @@ fn the_elimination_leaves_a_region_of_round_off_alone() {
         region_concentration: 0.0,
         ..Relaxation::default()
     };
-    for (lift, solved) in [(0.0, 0), (0.01, 1)] {
+    for (lift, solved) in [(0.0, false), (0.01, true)] {
         let mut y = moved.clone();
         y.iter_mut().skip(1).step_by(2).for_each(|p| p.y += lift);
         let mut x = vec![0.0; step.dim()];
         step.set_step(&y, &moved, &mut x);
         let work = step.relax(&mut x, relaxation).unwrap();
-        assert_eq!(work.region_solves, solved, "lift {lift}: {work:?}");
-        assert_eq!(work.skipped_regions, 1 - solved, "lift {lift}: {work:?}");
+        assert_eq!(work.region_solves > 0, solved, "lift {lift}: {work:?}");
+        assert_eq!(work.skipped_regions > 0, !solved, "lift {lift}: {work:?}");
     }
 }
