@@ -52,6 +52,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         trusted_model: setting("HOOKE_TRUSTED_MODEL", r.trusted_model)?,
         region_share: setting("HOOKE_REGION_SHARE", r.region_share)?,
         patch_share: setting("HOOKE_PATCH_SHARE", r.patch_share)?,
+        patch_covers: setting("HOOKE_PATCH_COVERS", r.patch_covers)?,
         region_rings: setting("HOOKE_REGION_RINGS", r.region_rings)?,
         region_coverage: setting("HOOKE_REGION_COVERAGE", r.region_coverage)?,
         region_concentration: setting("HOOKE_REGION_CONCENTRATION", r.region_concentration)?,

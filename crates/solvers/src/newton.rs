@@ -281,15 +281,23 @@ pub struct Relaxation {
     /// factorisations once per problem ([`NewtonProblem::prepare_relaxation`]), so an elimination
     /// allocates nothing. Default 1/64 (400 of cloth-160's 25,598 free vertices).
     pub region_share: f64,
-    /// The size of the cover's cells, as a share of the blocks (rounded up to a whole block; at
-    /// least one block). Default 1/32 (800 of cloth-160's free vertices, about 1,500 with their
+    /// The size of the cover's cells, as a share of the blocks (rounded up to a whole block; 0, a
+    /// negative value or NaN: one cell of all blocks). Each patch keeps its own problem and
+    /// factorisation, so the memory grows with the patches' total size, overlaps included (about
+    /// twice the mesh's with the defaults on cloth-160). Default 1/32 (800 of cloth-160's free vertices, about 1,500 with their
     /// rings).
     pub patch_share: f64,
+    /// How many covers of cells the patches come from: the seeds of each next cover are the
+    /// points farthest from those of the covers before (the corners of their cells), so that a
+    /// fold at a corner of one cover's cells lies inside a cell of another. Each block is in one
+    /// cell of every cover. Default 2.
+    pub patch_covers: usize,
     /// Rings of neighbouring blocks added around each cell to make its patch (its overlap with
     /// the neighbouring patches). Default 3.
     pub region_rings: usize,
-    /// The patches are solved hottest cell first until the cells solved hold this share of the
-    /// selected blocks' ‖∇Φ‖². Default 0.9.
+    /// The patches are solved, the one whose cell holds the most of the selected blocks' ‖∇Φ‖²
+    /// that no solved patch holds first, until the solved ones hold this share of it.
+    /// Default 0.7.
     pub region_coverage: f64,
     /// Eliminate only where the error is concentrated: when the selected blocks carry at least
     /// this share of ‖∇Φ‖². Default 0.5. Measured: on cloth-160's buckling
@@ -318,8 +326,9 @@ impl Default for Relaxation {
             trusted_model: 0.02,
             region_share: 1.0 / 64.0,
             patch_share: 1.0 / 32.0,
+            patch_covers: 2,
             region_rings: 3,
-            region_coverage: 0.9,
+            region_coverage: 0.7,
             region_concentration: 0.5,
             region_tolerance: 1e-6,
             region_iterations: 30,
@@ -339,6 +348,7 @@ impl Relaxation {
         trusted_model: 0.0,
         region_share: 0.0,
         patch_share: 0.0,
+        patch_covers: 0,
         region_rings: 0,
         region_coverage: 0.0,
         region_concentration: 0.0,
@@ -377,7 +387,7 @@ impl Relaxation {
     }
 
     /// How many of `blocks` blocks a cell of the elimination's cover holds: ⌈share · blocks⌉, at
-    /// most `blocks` (0 for a share that is not positive).
+    /// most `blocks` (0 for a share that is not positive, which means one cell of all of them).
     pub fn patch_blocks(&self, blocks: usize) -> usize {
         share_of(self.patch_share, true, blocks)
     }

@@ -7,7 +7,9 @@
 //! problem, in [`NewtonProblem::prepare_relaxation`]. An elimination then only loads the current
 //! state into the patches it solves, so it allocates nothing. The cells are the graph Voronoi
 //! cells (in spring hops) of seeds placed by farthest-point sampling: compact, of about equal size
-//! on a uniform mesh, and made from the mesh's connectivity alone.
+//! on a uniform mesh, and made from the mesh's connectivity alone. There are
+//! [`Relaxation::patch_covers`] such partitions, each next one seeded at the points farthest from
+//! the seeds before, the corners of their cells.
 
 use std::collections::VecDeque;
 
@@ -26,19 +28,17 @@ const NONE: u32 = u32::MAX;
 #[derive(Debug)]
 pub(super) struct PatchCover<const D: usize> {
     /// The settings the cover was built for: the bits of [`Relaxation::patch_share`],
-    /// [`Relaxation::region_rings`] and [`Relaxation::region_iterations`].
-    built_for: (u64, usize, usize),
-    /// The cell of each vertex (`NONE` for a pinned one), kept for the tests.
-    #[cfg(test)]
-    cell_of: Vec<u32>,
+    /// [`Relaxation::patch_covers`], [`Relaxation::region_rings`] and
+    /// [`Relaxation::region_iterations`].
+    built_for: (u64, usize, usize, usize),
     /// One patch per cell (`None` where its symbolic analysis failed: never solved).
     patches: Vec<Option<Patch<D>>>,
-    /// The patches each vertex is one of the own vertices of, vertex v's at
+    /// The patches whose cells hold each vertex (one per cover), vertex v's at
     /// `patches_of[patches_start[v]..patches_start[v + 1]]`.
     patches_of: Vec<u32>,
     patches_start: Vec<usize>,
-    /// Per patch: the heat (Σ ‖∂Φ/∂x_v‖²) of the selected blocks among its own vertices that no
-    /// patch solved so far in this elimination holds.
+    /// Per patch: the heat (Σ ‖∂Φ/∂x_v‖²) of the selected blocks in its cell that no patch
+    /// solved so far in this elimination holds.
     patch_heat: Vec<f64>,
     /// Per vertex: whether it is a selected block that no patch solved so far holds (all false
     /// between eliminations).
@@ -48,6 +48,8 @@ pub(super) struct PatchCover<const D: usize> {
 /// One patch: its problem, its inner Newton and their buffers.
 #[derive(Debug)]
 struct Patch<const D: usize> {
+    /// Its cell (sorted free vertices).
+    cell: Vec<u32>,
     /// The patch's vertices in the step problem: its own (the cell and its rings, sorted) first,
     /// then the held other ends of their springs.
     vertices: Vec<u32>,
@@ -72,9 +74,10 @@ impl<const D: usize> PatchCover<D> {
 }
 
 /// The settings a cover depends on.
-fn settings(relaxation: &Relaxation) -> (u64, usize, usize) {
+fn settings(relaxation: &Relaxation) -> (u64, usize, usize, usize) {
     (
         relaxation.patch_share.to_bits(),
+        relaxation.patch_covers,
         relaxation.region_rings,
         relaxation.region_iterations,
     )
@@ -109,18 +112,16 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.focus_mark = mark;
     }
 
-    /// The cell of every vertex: `cells` seeds by farthest-point sampling in spring hops over the
-    /// free vertices (the first free vertex first, then each time the one farthest from all seeds
-    /// so far, ties to the lower index; a vertex no seed reaches is the farthest), each free vertex
-    /// in the cell of its nearest seed (a breadth-first search from all seeds at once, in seed
-    /// order). Deterministic; O(cells × free vertices) time.
-    fn cells(&self, cells: usize) -> Vec<u32> {
-        let n = self.free.vertex_count();
+    /// Up to `count` seeds by farthest-point sampling in spring hops over the free vertices: the
+    /// first free vertex first, then each time the one farthest from all seeds so far (ties to the
+    /// lower index; a vertex no seed reaches is the farthest). Deterministic; O(count × free
+    /// vertices) time.
+    fn seeds(&self, count: usize) -> Vec<u32> {
         let free = self.free.free_vertices();
-        let mut distance = vec![NONE; n];
-        let mut seeds: Vec<u32> = Vec::with_capacity(cells);
+        let mut distance = vec![NONE; self.free.vertex_count()];
+        let mut seeds: Vec<u32> = Vec::with_capacity(count);
         let mut queue = VecDeque::new();
-        while seeds.len() < cells {
+        while seeds.len() < count {
             let next = if seeds.is_empty() {
                 free[0]
             } else {
@@ -150,7 +151,17 @@ impl<const D: usize> BackwardEulerStep<D> {
                 }
             }
         }
-        let mut cell_of = vec![NONE; n];
+        seeds
+    }
+
+    /// The graph Voronoi cells of `seeds` (in spring hops over the free vertices): each free
+    /// vertex in the cell of its nearest seed, by a breadth-first search from all seeds at once in
+    /// seed order; a part of the mesh no seed reaches is a cell of its own. Returns the cell of
+    /// every vertex (`NONE` for a pinned one).
+    fn voronoi(&self, seeds: &[u32]) -> Vec<u32> {
+        let free = self.free.free_vertices();
+        let mut cell_of = vec![NONE; self.free.vertex_count()];
+        let mut queue = VecDeque::new();
         for (c, &seed) in seeds.iter().enumerate() {
             cell_of[seed as usize] = c as u32;
             queue.push_back(seed);
@@ -165,7 +176,6 @@ impl<const D: usize> BackwardEulerStep<D> {
                     }
                 }
             }
-            // A part of the mesh no seed reached (more parts than cells) is a cell of its own.
             let Some(&v) = free.iter().find(|&&v| cell_of[v as usize] == NONE) else {
                 break;
             };
@@ -180,28 +190,43 @@ impl<const D: usize> BackwardEulerStep<D> {
         cell_of
     }
 
-    /// Build the cover of [`Relaxation::patch_share`]-sized cells with their rings, and each
-    /// patch's problem and symbolic analysis.
+    /// Build the covers of [`Relaxation::patch_share`]-sized cells with their rings
+    /// ([`Relaxation::patch_covers`] of them, the seeds of each next one the points farthest from
+    /// the seeds before: the corners of the cells before, so that a fold at a corner of one
+    /// cover's cells lies inside a cell of the next), and each patch's problem and symbolic
+    /// analysis.
     pub(super) fn build_cover(&mut self, relaxation: &Relaxation) -> PatchCover<D> {
         let free_count = self.free.free_count();
-        let cell_size = relaxation.patch_blocks(free_count).max(1);
-        let cell_of = if free_count == 0 {
-            vec![NONE; self.free.vertex_count()]
-        } else {
-            self.cells(free_count.div_ceil(cell_size))
+        // A share that is not positive: one cell of every free vertex.
+        let cell_size = match relaxation.patch_blocks(free_count) {
+            0 => free_count,
+            size => size,
         };
-        let count = cell_of
-            .iter()
-            .filter(|&&c| c != NONE)
-            .max()
-            .map_or(0, |&c| c as usize + 1);
-        let mut members: Vec<Vec<u32>> = vec![Vec::new(); count];
-        for &v in self.free.free_vertices() {
-            members[cell_of[v as usize] as usize].push(v);
+        let per_cover = free_count.div_ceil(cell_size.max(1));
+        let covers = relaxation.patch_covers.max(1);
+        let seeds = if free_count == 0 {
+            Vec::new()
+        } else {
+            self.seeds(per_cover * covers)
+        };
+        let mut cells: Vec<Vec<u32>> = Vec::new();
+        for cover_seeds in seeds.chunks(per_cover.max(1)) {
+            let cell_of = self.voronoi(cover_seeds);
+            let count = cell_of
+                .iter()
+                .filter(|&&c| c != NONE)
+                .max()
+                .map_or(0, |&c| c as usize + 1);
+            let first = cells.len();
+            cells.resize(first + count, Vec::new());
+            for &v in self.free.free_vertices() {
+                cells[first + cell_of[v as usize] as usize].push(v);
+            }
         }
-        let patches: Vec<Option<Patch<D>>> = members
+        let patches: Vec<Option<Patch<D>>> = cells
             .into_iter()
-            .map(|mut own| {
+            .map(|cell| {
+                let mut own = cell.clone();
                 for &v in &own {
                     self.focus_mark[v as usize] = true;
                 }
@@ -210,13 +235,13 @@ impl<const D: usize> BackwardEulerStep<D> {
                     self.focus_mark[v as usize] = false;
                 }
                 own.sort_unstable();
-                self.patch(own, relaxation)
+                self.patch(cell, own, relaxation)
             })
             .collect();
         let n = self.free.vertex_count();
         let mut patches_start = vec![0usize; n + 1];
         for patch in patches.iter().flatten() {
-            for &v in &patch.vertices[..patch.own] {
+            for &v in &patch.cell {
                 patches_start[v as usize + 1] += 1;
             }
         }
@@ -226,15 +251,14 @@ impl<const D: usize> BackwardEulerStep<D> {
         let mut patches_of = vec![0u32; patches_start[n]];
         let mut next = patches_start.clone();
         for (p, patch) in patches.iter().enumerate() {
-            for &v in patch.iter().flat_map(|patch| &patch.vertices[..patch.own]) {
+            for &v in patch.iter().flat_map(|patch| &patch.cell) {
                 patches_of[next[v as usize]] = p as u32;
                 next[v as usize] += 1;
             }
         }
+        let count = patches.len();
         PatchCover {
             built_for: settings(relaxation),
-            #[cfg(test)]
-            cell_of,
             patches,
             patches_of,
             patches_start,
@@ -247,7 +271,12 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// others held — a small [`BackwardEulerStep`] over the springs at `own`, whose held ends are
     /// its pinned vertices (numbered after its own), with the same masses and time step — and its
     /// inner Newton. `None` if its symbolic analysis fails.
-    fn patch(&mut self, own: Vec<u32>, relaxation: &Relaxation) -> Option<Patch<D>> {
+    fn patch(
+        &mut self,
+        cell: Vec<u32>,
+        own: Vec<u32>,
+        relaxation: &Relaxation,
+    ) -> Option<Patch<D>> {
         // `region_local` is NONE everywhere between calls.
         let mut local = std::mem::take(&mut self.region_local);
         let mut vertices = own.clone();
@@ -292,6 +321,7 @@ impl<const D: usize> BackwardEulerStep<D> {
         let dim = step.dim();
         let m = vertices.len();
         Some(Patch {
+            cell,
             own: own.len(),
             vertices,
             step,
@@ -308,13 +338,15 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// The elimination (see [`Relaxation::region_share`]) over `cover`, after
     /// [`BackwardEulerStep::select_hottest`] put the `count` hottest free vertices, the selected
     /// blocks, first in `focus_heat`; added to `work`. Greedily, as in a set cover: the patch
-    /// holding the most heat of the selected blocks that no patch solved so far holds is solved
-    /// next (ties to the lower index), until the patches solved hold
-    /// [`Relaxation::region_coverage`] of the selection's heat. A fold that straddles two cells
-    /// is so solved in one patch where the overlap holds it. Every accepted inner step and
-    /// relaxation lowers Φ, so Φ never rises; an inner solve that fails keeps its last accepted
-    /// iterate (or, on non-finite values, the patch's start). A patch whose gradient is round-off
-    /// is not solved (counted as skipped): there is nothing to eliminate. Allocates nothing.
+    /// whose cell holds the most heat of the selected blocks that no patch solved so far holds is
+    /// solved next (ties to the lower index), and then every selected block among its own
+    /// vertices counts as held, until the patches solved hold [`Relaxation::region_coverage`] of
+    /// the selection's heat. Counting a cell's heat rather than its patch's prefers the patch
+    /// whose middle holds a fold over one that has the fold at its held edge. Every accepted inner
+    /// step and relaxation lowers Φ, so Φ never rises; an inner solve that fails keeps its last
+    /// accepted iterate (or, on non-finite values, the patch's start). A patch whose gradient is
+    /// round-off is not solved (counted as skipped): there is nothing to eliminate. Allocates
+    /// nothing.
     pub(super) fn eliminate(
         &mut self,
         cover: &mut PatchCover<D>,
@@ -432,47 +464,62 @@ mod tests {
     use hooke_assembly::FreeDofs;
     use hooke_mesh::generators;
 
-    use super::NONE;
     use crate::{BackwardEulerStep, Relaxation};
 
-    /// The cells partition the free vertices (pinned ones in none), in the number asked for and
-    /// of about equal size on a uniform cloth; each patch is its cell and its rings.
+    /// Each cover's cells partition the free vertices (pinned ones in none), in the number asked
+    /// for and of about equal size on a uniform cloth; each patch is its cell and its rings.
     #[test]
-    fn the_cover_partitions_the_free_vertices_into_compact_cells() {
+    fn the_covers_partition_the_free_vertices_into_compact_cells() {
         let n = 24;
         let mesh = generators::cloth(n, 1e3).unwrap();
         let pinned = [0u32, n as u32 - 1];
         let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
         let free_count = free.free_count();
         let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, 0.01);
-        for (share, rings) in [(1.0 / 16.0, 0), (1.0 / 16.0, 2), (0.3, 1), (1.0, 3)] {
+        for (share, covers, rings) in [
+            (1.0 / 16.0, 1, 0),
+            (1.0 / 16.0, 2, 2),
+            (0.3, 3, 1),
+            (1.0, 2, 3),
+        ] {
             let relaxation = Relaxation {
                 patch_share: share,
+                patch_covers: covers,
                 region_rings: rings,
                 ..Relaxation::default()
             };
             let cover = step.build_cover(&relaxation);
             assert!(cover.is_for(&relaxation));
             let cells = free_count.div_ceil(relaxation.patch_blocks(free_count));
-            assert_eq!(cover.patches.len(), cells, "share {share}");
-            let mut sizes = vec![0usize; cells];
-            for (v, &c) in cover.cell_of.iter().enumerate() {
-                assert_eq!(c == NONE, pinned.contains(&(v as u32)), "vertex {v}");
-                if c != NONE {
-                    sizes[c as usize] += 1;
+            assert_eq!(cover.patches.len(), covers * cells, "share {share}");
+            let patches: Vec<_> = cover
+                .patches
+                .iter()
+                .map(|p| p.as_ref().expect("every patch is analysed"))
+                .collect();
+            for (k, group) in patches.chunks(cells).enumerate() {
+                let mut count = vec![0usize; mesh.vertex_count()];
+                for patch in group {
+                    for &v in &patch.cell {
+                        count[v as usize] += 1;
+                    }
                 }
+                for (v, &c) in count.iter().enumerate() {
+                    let expected = usize::from(!pinned.contains(&(v as u32)));
+                    assert_eq!(c, expected, "cover {k}, vertex {v}");
+                }
+                let mean = free_count as f64 / cells as f64;
+                let largest = group.iter().map(|p| p.cell.len()).max().unwrap() as f64;
+                assert!(
+                    largest <= 2.5 * mean,
+                    "share {share}, cover {k}: largest cell {largest}"
+                );
             }
-            let mean = free_count as f64 / cells as f64;
-            let largest = *sizes.iter().max().unwrap() as f64;
-            assert!(largest <= 2.5 * mean, "share {share}: cell sizes {sizes:?}");
-            for (c, patch) in cover.patches.iter().enumerate() {
-                let patch = patch.as_ref().expect("every patch is analysed");
+            for (c, patch) in patches.iter().enumerate() {
                 let own = &patch.vertices[..patch.own];
                 assert!(own.windows(2).all(|w| w[0] < w[1]), "sorted and distinct");
                 // Its cell, grown ring by ring.
-                let mut expected: Vec<u32> = (0..mesh.vertex_count() as u32)
-                    .filter(|&v| cover.cell_of[v as usize] == c as u32)
-                    .collect();
+                let mut expected = patch.cell.clone();
                 for _ in 0..rings {
                     let mut next = expected.clone();
                     for spring in mesh.springs() {
