@@ -28,8 +28,9 @@
 //! neighbours, then a nonlinear elimination ([`Relaxation::region_share`]): where the 1/64 of the
 //! vertices with the largest gradients carry at least half of ‖∇Φ‖²
 //! ([`Relaxation::region_concentration`]: a fold, not error spread over the sheet), the patches
-//! of a fixed cover that hold them (cells of 1/32 of the vertices with three rings of neighbours)
-//! are solved in turn by an inner Newton to 1e-6 of their gradient, everything else held; all of it
+//! of two fixed, staggered covers that hold them (cells of 1/32 of the vertices with three rings
+//! of neighbours) are solved in turn by an inner Newton to 1e-6 of their gradient, everything
+//! else held; all of it
 //! skipped after an exact Newton step taken in full whose decrease of Φ matches its
 //! quadratic model within 2 % ([`Relaxation::trusted_model`]), where Newton needs no help (a solid
 //! that does not buckle never relaxes). This is what makes buckling cloth converge fast. The quadratic model of Φ holds only
@@ -51,29 +52,37 @@
 //!
 //! Its patches are fixed so that it allocates nothing: each patch's problem and symbolic
 //! factorisation are built once per problem ([`NewtonProblem::prepare_relaxation`]). The cells are
-//! graph Voronoi cells of farthest-point seeds; the patches are chosen greedily, the one holding
-//! the most of the selected vertices' heat that no solved patch holds first, until the solved
-//! ones hold 90 % of it ([`Relaxation::region_coverage`]), so that a fold across two cells is
-//! solved in one patch where the overlap holds it. An earlier version solved the hottest 1/64 and
-//! three rings of their neighbours as one region, whose pattern, and so whose problem and symbolic
-//! analysis, changed in every iteration; the table compares the two. Measured with `newton_probe`
-//! (release, every step to 1e-10; one job at a time):
+//! graph Voronoi cells of farthest-point seeds, in two covers, the second seeded at the corners of
+//! the first's cells ([`Relaxation::patch_covers`]). The patches are chosen greedily: the one whose
+//! cell holds the most of the selected vertices' heat that no solved patch holds first, until the
+//! solved ones hold 70 % of it ([`Relaxation::region_coverage`]); a fold at the corner of one
+//! cover's cells so lies in the middle of a cell of the other. An earlier version solved the
+//! hottest 1/64 and three rings of their neighbours as one region, whose pattern, and so whose
+//! problem and symbolic analysis, changed in every iteration; the table compares the two.
+//! Measured with `newton_probe` (release, every step to 1e-10; one job at a time; the columns of
+//! a row within the same hour, on a VM whose speed varied by about 20 % over the day):
 //!
-//! | | default (fixed patches) | the region of the hottest vertices | without the elimination (`region_share: 0.0`) |
+//! | | default (two covers of fixed patches) | the region of the hottest vertices | without the elimination (`region_share: 0.0`) |
 //! |---|---|---|---|
-//! | cloth-160, speed-vs-error step from state D (below) | 12 iterations (11 to 1e-8), 19 factorisations + 161 in 29 patches, 19.2 s | 14 (13), 25 + 111 in 11 regions, 21.9 s | 31 (30), 53, 34.7 s |
-//! | the same from state E, made by the region version before `region_concentration` | 13 (12), 20 + 196 in 32 patches, 19.5 s | 13 (12), 23 + 91, 18.9 s | — |
-//! | the same from the state the region version makes in `newton_probe` | 14 (13), 21 + 222 in 42 patches, 21.3 s | 13 (13), 19.0 s | — |
-//! | cloth-160, steps 1–8 from rest | 97 iterations (7, 11, 13, 18, 9, 13, 14, 12), 151 s | 103 (7, 12, 13, 22, 11, 13, 13, 12), 176 s | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
-//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | STIFF | 42, 45, 28, 19 iterations, 7.1 s | 40, 45, 33, 19, 4.7 s |
+//! | cloth-160, speed-vs-error step from state D (below) | 13 iterations (12 to 1e-8), 20 factorisations + 150 in 24 patches, 21.7 s | 14 (13), 26.5 s | 31 (30), 53, 34.7 s (an earlier day) |
+//! | the same from state E, made by the region version before `region_concentration` | 12 (11), 20 + 192 in 28 patches, 23.6 s | 13 (12), 18.9 s (an earlier day) | — |
+//! | the same from the state the region version makes in `newton_probe` | 12 (11), 19 + 194 in 29 patches, 27.2 s | 13 (13), 25.2 s | — |
+//! | cloth-160, steps 1–8 from rest | 93 iterations (7, 10, 12, 16, 10, 10, 14, 14), 121 s | 103 (7, 12, 13, 22, 11, 13, 13, 12), 176 s | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
+//! | cloth-40 crushed to 1 % (SCENES.md), its first step | 108 iterations, 7.9 s | 159, 14.7 s | — |
+//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | 34, 44, 35, 19 iterations, 5.5 s | 42, 45, 28, 19 iterations, 7.1 s (an earlier day) | 40, 45, 33, 19, 4.7 s |
 //!
-//! The cover's cell size was chosen on the three cloth-160 states (iterations to 1e-10 on D, E and
-//! the probe's own state; wall time summed): cells of 1/8 (with the cells solved in order of their
-//! heat rather than greedily) 11 on D but 36 s; 1/16: 14, 15, 12, 91 s; 1/32: 12, 13, 14, 60 s;
-//! 1/64: 15, 11, 14, 61 s (the region version: 14, 13, 13, 60 s). With 1/16 cells, solving to
-//! 60 % coverage and to 1e-3 gave 17, 15, 14 in 76 s, and 3 inner sweeps instead of 10 gave 14,
-//! 15, 14 in 77 s (not tried with 1/32); one ring of overlap instead of three (1/8 cells, in heat
-//! order) took 16 iterations on D.
+//! The covers' settings were chosen on the three cloth-160 states (iterations to 1e-10 on D, E and
+//! the probe's own state, and the wall time summed over the three), with one cover and the
+//! patches chosen by the heat in the whole patch at 90 % coverage: cells of 1/8 (solved in order
+//! of their cells' heat) 11 on D but 36 s; 1/16: 14, 15, 12, 91 s; 1/32: 12, 13, 14, 60 s; 1/64:
+//! 15, 11, 14, 61 s (the region version: 14, 13, 13, 60 s, two of them from the day before). With 1/16 cells,
+//! solving to 60 % coverage and to 1e-3 gave 17, 15, 14 in 76 s, and 3 inner sweeps instead of 10
+//! gave 14, 15, 14 in 77 s; one ring of overlap instead of three (1/8 cells) took 16 iterations
+//! on D. One cover at 1/32 took 273 iterations on the crushed cloth's first step, and halved a
+//! frame of the crushed hard case into 11 pieces (74 s). Two covers were measured an hour later,
+//! on a machine about 20 % slower (the one-cover version then took 22.6 s on D and 23.9 s on the
+//! probe's state): at 90 % coverage 12, 12, 13, 80 s, and 132 on the crushed step; at 70 % (the
+//! default) 13, 12, 12, 72 s, and 108.
 //!
 //! Without `region_concentration` (every elimination done), the region version's stiff cloth
 //! steps took 38, 39, 22 and 18 iterations but 17.1 s: its error is spread over the sheet (the
@@ -81,7 +90,7 @@
 //! solving a quarter of the sheet 30 times per step cost 4× the rest of the solve.
 //!
 //! The relaxation with its patch solves costs about as much as the outer factorisations (on
-//! cloth-160's step from D 9.8 s relaxing, sweeps included, against 8.0 s factoring). A buckling
+//! cloth-160's step from D 10.3 s relaxing, sweeps included, against 9.5 s factoring). A buckling
 //! step has several solutions, and the path decides which one Newton finds: from D, Φ* =
 //! 2.8597989e-4 kg·m² with the region version against 2.8597908e-4 without the elimination.
 //!
