@@ -505,13 +505,6 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         Some(self.assemble(xf, Definiteness::Clamped))
     }
 
-    /// Gauss–Seidel over the free vertices in index order: each vertex takes up to
-    /// `block_iterations` Newton steps on Φ as a function of its own position (the others fixed),
-    /// with its clamped 3×3 Hessian (positive definite: the mass is in it) and a backtracking line
-    /// search on the exact change of Φ, so Φ never rises. Then the focused sweeps (see
-    /// [`Relaxation`]): the vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and their
-    /// rings of spring neighbours, swept in index order. Serial, hence deterministic. The pinned
-    /// vertices, and with counter-forces the pinned unknowns, stay where they are.
     /// Build the elimination's patches for `relaxation` (see [`Relaxation::region_share`]) unless
     /// they are built for its settings already, or there is no elimination.
     fn prepare_relaxation(&mut self, relaxation: Relaxation) {
@@ -530,6 +523,14 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         self.patches = Some(Box::new(cover));
     }
 
+    /// Gauss–Seidel over the free vertices in index order: each vertex takes up to
+    /// `block_iterations` Newton steps on Φ as a function of its own position (the others fixed),
+    /// with its clamped 3×3 Hessian (positive definite: the mass is in it) and a backtracking line
+    /// search on the exact change of Φ, so Φ never rises. Then the focused sweeps (see
+    /// [`Relaxation`]): the vertices with the largest ‖∂Φ/∂x_v‖ (ties to the lower index) and their
+    /// rings of spring neighbours, swept in index order. Then the nonlinear elimination over the
+    /// patches (see [`Relaxation::region_share`]). Serial, hence deterministic. The pinned
+    /// vertices, and with counter-forces the pinned unknowns, stay where they are.
     fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
         self.expand(xf);
         let mut work = RelaxationWork::default();
@@ -685,7 +686,7 @@ impl<const D: usize> BackwardEulerStep<D> {
         let Some(mut cover) = self.patches.take() else {
             return;
         };
-        self.eliminate(&mut cover, count, relaxation, work);
+        self.eliminate(&mut cover, count, hottest, relaxation, work);
         self.patches = Some(cover);
     }
 

@@ -55,8 +55,9 @@
 //! graph Voronoi cells of farthest-point seeds, in two covers, the second seeded at the corners of
 //! the first's cells ([`Relaxation::patch_covers`]). The patches are chosen greedily: the one whose
 //! cell holds the most of the selected vertices' heat that no solved patch holds first, until the
-//! solved ones hold 70 % of it ([`Relaxation::region_coverage`]); a fold at the corner of one
-//! cover's cells so lies in the middle of a cell of the other. An earlier version solved the
+//! solved cells' heat counted at each choice reaches 70 % of it
+//! ([`Relaxation::region_coverage`]); a fold at the corner of one cover's cells so lies in the
+//! middle of a cell of the other. An earlier version solved the
 //! hottest 1/64 and three rings of their neighbours as one region, whose pattern, and so whose
 //! problem and symbolic analysis, changed in every iteration; the table compares the two.
 //! Measured with `newton_probe` (release, every step to 1e-10; one job at a time; the columns of
@@ -305,8 +306,8 @@ pub struct Relaxation {
     /// the neighbouring patches). Default 3.
     pub region_rings: usize,
     /// The patches are solved, the one whose cell holds the most of the selected blocks' ‖∇Φ‖²
-    /// that no solved patch holds first, until the solved ones hold this share of it.
-    /// Default 0.7.
+    /// that no solved patch holds first, until the cells' heat counted at each choice reaches
+    /// this share of it. Default 0.7.
     pub region_coverage: f64,
     /// Eliminate only where the error is concentrated: when the selected blocks carry at least
     /// this share of ‖∇Φ‖². Default 0.5. Measured: on cloth-160's buckling

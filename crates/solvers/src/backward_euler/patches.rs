@@ -337,11 +337,12 @@ impl<const D: usize> BackwardEulerStep<D> {
 
     /// The elimination (see [`Relaxation::region_share`]) over `cover`, after
     /// [`BackwardEulerStep::select_hottest`] put the `count` hottest free vertices, the selected
-    /// blocks, first in `focus_heat`; added to `work`. Greedily, as in a set cover: the patch
-    /// whose cell holds the most heat of the selected blocks that no patch solved so far holds is
-    /// solved next (ties to the lower index), and then every selected block among its own
-    /// vertices counts as held, until the patches solved hold [`Relaxation::region_coverage`] of
-    /// the selection's heat. Counting a cell's heat rather than its patch's prefers the patch
+    /// blocks, first in `focus_heat` (`total`: the sum of their heat); added to `work`. Greedily,
+    /// as in a set cover: the patch whose cell holds the most heat of the selected blocks that no
+    /// patch solved so far holds is solved next (ties to the lower index), and then every
+    /// selected block among its own vertices counts as held, until the cells' heat counted at
+    /// each choice reaches [`Relaxation::region_coverage`] of `total` (the heat in the chosen
+    /// patches' rings is not counted: the rule errs towards solving one patch more). Counting a cell's heat rather than its patch's prefers the patch
     /// whose middle holds a fold over one that has the fold at its held edge. Every accepted inner
     /// step and relaxation lowers Φ, so Φ never rises; an inner solve that fails keeps its last
     /// accepted iterate (or, on non-finite values, the patch's start). A patch whose gradient is
@@ -351,12 +352,11 @@ impl<const D: usize> BackwardEulerStep<D> {
         &mut self,
         cover: &mut PatchCover<D>,
         count: usize,
+        total: f64,
         relaxation: Relaxation,
         work: &mut RelaxationWork,
     ) {
-        let selected = &self.focus_heat[..count];
-        let total: f64 = selected.iter().map(|&(heat, _)| heat).sum();
-        for &(_, v) in selected {
+        for &(_, v) in &self.focus_heat[..count] {
             cover.uncovered[v as usize] = true;
         }
         let mut covered = 0.0;
@@ -372,22 +372,13 @@ impl<const D: usize> BackwardEulerStep<D> {
                     }
                 }
             }
-            let (best, heat) =
-                cover
-                    .patch_heat
-                    .iter()
-                    .enumerate()
-                    .rev()
-                    .fold(
-                        (0, 0.0),
-                        |best, (p, &heat)| {
-                            if heat >= best.1 {
-                                (p, heat)
-                            } else {
-                                best
-                            }
-                        },
-                    );
+            // The hottest, ties to the lower index.
+            let (mut best, mut heat) = (0, 0.0);
+            for (p, &h) in cover.patch_heat.iter().enumerate() {
+                if h > heat {
+                    (best, heat) = (p, h);
+                }
+            }
             if heat <= 0.0 {
                 break; // the rest of the selection is in no analysed patch
             }
