@@ -7,17 +7,27 @@
 //! - [`assembly`]: spring energies, forces and their derivatives;
 //! - [`solvers`]: linear and nonlinear solvers;
 //! - [`sim`]: scenes, forces, damping, contact and time integration;
-//! - [`bench`](mod@bench): speed against error (SPEC §8), the library behind `hooke bench`.
+//! - [`sph`]: weakly compressible SPH fluids, independent of the spring crates.
 //!
-//! The `hooke` command-line program runs scenes and writes frames, a summary and a preview.
+//! The `hooke` command-line program (scenes, runs, frames, summaries, previews, `hooke bench`) is the
+//! `hooke-cli` crate, built only with the `cli` feature (on by default). A program that embeds the
+//! library depends on
+//!
+//! ```toml
+//! hooke = { version = "0.1", default-features = false }
+//! ```
+//!
+//! and compiles no command-line, progress-bar, plotting or JSON crate. [`nalgebra`] is re-exported so
+//! that vectors built by the caller have the version the library uses.
 #![deny(missing_docs)]
 
-pub mod bench;
+pub use nalgebra;
 
 pub use hooke_assembly as assembly;
 pub use hooke_mesh as mesh;
 pub use hooke_sim as sim;
 pub use hooke_solvers as solvers;
+pub use hooke_sph as sph;
 
 /// The README's code blocks, compiled and run as doc tests so that the README stays true.
 #[cfg(doctest)]

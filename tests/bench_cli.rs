@@ -6,7 +6,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::Command;
 
-use hooke::bench::COLUMNS;
+use hooke_cli::bench::COLUMNS;
 use serde_json::Value;
 
 /// Solver settings of the run: one PD, two Newton and one linearised run.

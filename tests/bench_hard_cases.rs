@@ -7,7 +7,7 @@
 //! elastic energy that y puts into the springs at the pins (h² k / m ≈ 2.6e5 there), and the energy
 //! watchdog stops it. On cloth-40 it finishes, with +49 % of the energy scale (benches/README.md).
 
-use hooke::bench::{
+use hooke_cli::bench::{
     format_hard_cases, hard_cases, HardCaseOptions, HardOutcome, HARD_CASES, HARD_INTEGRATORS,
 };
 

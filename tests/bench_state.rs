@@ -3,7 +3,7 @@
 //! their ends (y gives objective error and residual 1, x* gives 0); PD's error falls with its
 //! iterations.
 
-use hooke::bench::{
+use hooke_cli::bench::{
     load_setup, run_spec, BenchProblem, ErrorMeter, PrepareOptions, StartState, TimingOptions,
     STATE_STEPS,
 };

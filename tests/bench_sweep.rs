@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use hooke::bench::{sweep, SolverSpec, StartState, SweepOptions, TimingOptions};
+use hooke_cli::bench::{sweep, SolverSpec, StartState, SweepOptions, TimingOptions};
 
 fn specs() -> Vec<SolverSpec> {
     ["pd:2", "newton-tol:1e-6", "linearized-cg"]
@@ -120,13 +120,13 @@ fn sweep_command_writes_json_csv_and_plot() {
 #[test]
 fn a_cached_reference_does_not_bring_errors_into_a_sweep_without_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let setup = hooke::bench::load_setup("cloth-10").unwrap();
-    let prepare = hooke::bench::PrepareOptions {
+    let setup = hooke_cli::bench::load_setup("cloth-10").unwrap();
+    let prepare = hooke_cli::bench::PrepareOptions {
         start: StartState::Rest,
         reference: true,
         cache_dir: Some(dir.path().to_path_buf()),
     };
-    hooke::bench::BenchProblem::prepare(&setup, &prepare, &mut |_| {}).unwrap();
+    hooke_cli::bench::BenchProblem::prepare(&setup, &prepare, &mut |_| {}).unwrap();
     let options = SweepOptions {
         sizes: vec![10],
         cache_dir: Some(dir.path().to_path_buf()),

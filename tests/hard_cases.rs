@@ -25,9 +25,9 @@
 
 use std::time::Instant;
 
-use hooke::bench::{energy_scale, hard_case, hard_case_settings, HARD_CASES, HARD_INTEGRATORS};
 use hooke::sim::{Scene, SimError, Simulation, State};
 use hooke::solvers::StopReason;
+use hooke_cli::bench::{energy_scale, hard_case, hard_case_settings, HARD_CASES, HARD_INTEGRATORS};
 
 const N: usize = 40;
 /// Frames per run.
@@ -37,7 +37,7 @@ const NEWTON_FRAMES: usize = 2;
 /// Explicit methods take at most this many substeps a frame; above, they must refuse.
 const MAX_SUBSTEPS: usize = 1000;
 
-/// The hard case `name` on cloth-40, built by the library (`hooke::bench::hard_case`, shared with
+/// The hard case `name` on cloth-40, built by the library (`hooke_cli::bench::hard_case`, shared with
 /// `hooke bench --hard-cases`), with the two properties SCENES.md states checked here.
 fn case(name: &str) -> (Scene<3>, State<3>) {
     let (scene, state) = hard_case(name, N).unwrap();

@@ -24,6 +24,10 @@
 //! ```
 #![deny(missing_docs)]
 
+/// The faer version whose types ([`faer::sparse::SparseColMat`], [`faer::Par`], …) appear in this
+/// crate's public signatures, re-exported so that callers build them with the same version.
+pub use faer;
+
 pub mod backward_euler;
 pub mod cg;
 pub mod cholesky;

@@ -17,17 +17,17 @@
 //!   hard cases of SCENES.md.
 //!
 //! ```no_run
-//! use hooke::bench::{BenchProblem, ErrorMeter, PrepareOptions, SolverSpec, TimingOptions};
+//! use hooke_cli::bench::{BenchProblem, ErrorMeter, PrepareOptions, SolverSpec, TimingOptions};
 //!
-//! let setup = hooke::bench::load_setup("cloth-10")?;
+//! let setup = hooke_cli::bench::load_setup("cloth-10")?;
 //! let options = PrepareOptions { reference: true, ..PrepareOptions::default() };
 //! let problem = BenchProblem::prepare(&setup, &options, &mut |line| eprintln!("{line}"))?;
 //! let mut meter = ErrorMeter::new(&problem);
 //! let spec: SolverSpec = "pd:10".parse()?;
 //! let outcomes =
-//!     hooke::bench::run_spec(&problem, &mut meter, &spec, TimingOptions::default(), &mut |_| {})?;
+//!     hooke_cli::bench::run_spec(&problem, &mut meter, &spec, TimingOptions::default(), &mut |_| {})?;
 //! println!("{:?}", outcomes[0].record);
-//! # Ok::<(), hooke::bench::BenchError>(())
+//! # Ok::<(), hooke_cli::bench::BenchError>(())
 //! ```
 
 mod cli;

@@ -13,7 +13,7 @@ use crate::bench::{BenchError, Record, SweepRow};
 /// The family name the embedded font is registered under.
 const FONT: &str = "sans-serif";
 /// DejaVu Sans (see `assets/fonts/DejaVuSans-LICENSE.txt`).
-static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+static FONT_BYTES: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
 
 const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),

@@ -35,7 +35,7 @@ const SS: u32 = 2;
 /// The font family name the embedded font is registered under.
 const FONT: &str = "sans-serif";
 /// DejaVu Sans (see `assets/fonts/DejaVuSans-LICENSE.txt`).
-static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+static FONT_BYTES: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
 
 /// Camera azimuth about the y axis, in degrees (0 looks along −z).
 const AZIMUTH_DEG: f64 = 35.0;

@@ -1,0 +1,469 @@
+//! `hooke run` and `hooke scenes`, and the dispatch of every subcommand.
+
+use crate::output;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use crate::mesh::io::{save_obj, save_vtk, Frame};
+use crate::mesh::MeshError;
+use crate::sim::file::{load_scene, FrameFormat, SceneFileError};
+use crate::sim::scenes::{self, AnySetup, Setup};
+use crate::sim::{
+    parse_energy_limit, Integrator, LinearSolver, PinMethod, SimError, Simulation, SolverOptions,
+};
+use crate::solvers::StopReason;
+use clap::{Parser, Subcommand, ValueEnum};
+use nalgebra::SVector;
+
+use output::{
+    progress_bar, render_preview, write_summary, OutputError, PreviewInput, PreviewPositions,
+    RunSummary, SolverSettingsRecord, StepRecord,
+};
+
+/// The scene `hooke run` uses without an argument.
+const DEFAULT_SCENE: &str = "cloth-40";
+
+#[derive(Parser)]
+#[command(
+    name = "hooke",
+    version,
+    about = "Mass-spring simulation with implicit solvers"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the built-in scenes.
+    Scenes,
+    /// Run a scene and write frames, summary.json and preview.png.
+    Run(RunArgs),
+    /// Speed against error: time solvers on one backward Euler step and measure their errors.
+    Bench(crate::bench::BenchArgs),
+}
+
+#[derive(clap::Args, Default)]
+struct RunArgs {
+    /// A built-in scene name (see `hooke scenes`) or a scene file (.toml).
+    #[arg(default_value = DEFAULT_SCENE)]
+    scene: String,
+    /// Time integrator: explicit-euler, symplectic-euler, linearized (linearised implicit Euler, β
+    /// family), newton (backward Euler by Newton) or pd (backward Euler by projective dynamics).
+    /// Default: the scene's.
+    #[arg(long, value_name = "NAME")]
+    integrator: Option<String>,
+    /// β of the linearized integrator, in [0, 1]: 0 explicit, 0.5 midpoint-like, 1 linearised
+    /// backward Euler (default 1).
+    #[arg(long, value_name = "B", allow_negative_numbers = true)]
+    beta: Option<f64>,
+    /// Linear solver of the linearized integrator: jacobi or cg (conjugate gradient with a
+    /// block-Jacobi preconditioner; default).
+    #[arg(long, value_name = "NAME")]
+    linear_solver: Option<String>,
+    /// Solver iterations: the linear solver's limit (linearized, default 1000), Newton's iteration
+    /// limit (newton, default 100), iterations per step (pd, default 10).
+    #[arg(long, value_name = "K")]
+    iterations: Option<usize>,
+    /// Relative tolerance, > 0: the linear solver's residual (linearized, default 1e-8), Newton's
+    /// gradient (newton, default 1e-8), PD's position change per iteration (pd, default: none,
+    /// run all iterations).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    tolerance: Option<f64>,
+    /// Number of frames to run (default: the scene's).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Frame time step in seconds (default: the scene's).
+    #[arg(long, allow_negative_numbers = true)]
+    dt: Option<f64>,
+    /// Substeps per frame for explicit integrators (default: from the stability bound).
+    #[arg(long)]
+    substeps: Option<usize>,
+    /// Run an explicit integrator even above its stability bound.
+    #[arg(long)]
+    force: bool,
+    /// Energy watchdog: stop with an error when the total energy rises above
+    /// E₀ + FACTOR·(|E₀| + M|g|L) (E₀ the initial energy, M the total mass, L the diagonal of the
+    /// initial bounding box), a gain no scene without energy sources can make except by instability.
+    /// A factor >= 0, or `off` to disable the watchdog. Default: the scene file's, else 1. Not
+    /// checked for scenes with wind or moving pins, nor with --force.
+    #[arg(long, value_name = "FACTOR|off", allow_negative_numbers = true)]
+    energy_limit: Option<String>,
+    /// How the implicit integrators hold pinned vertices: reduction (pinned DOFs removed from the
+    /// unknowns; default) or counter-force (every DOF kept, the force on a pinned vertex cancelled
+    /// with its Jacobian). Both give the same steps up to round-off; pd supports only reduction.
+    /// Default: the scene file's, else reduction.
+    #[arg(long, value_name = "reduction|counter-force")]
+    pin_method: Option<String>,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Frame file format (default: the scene file's, else obj).
+    #[arg(long, value_enum)]
+    format: Option<Format>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Format {
+    Obj,
+    Vtk,
+}
+
+/// Everything the command can fail with.
+#[derive(Debug, thiserror::Error)]
+enum CliError {
+    #[error("unknown scene {0:?}: not a built-in scene (see `hooke scenes`) and not a file")]
+    UnknownScene(String),
+    #[error(transparent)]
+    SceneFile(#[from] SceneFileError),
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("invalid --{name}: {reason}")]
+    Argument { name: &'static str, reason: String },
+    #[error(transparent)]
+    Bench(#[from] crate::bench::BenchError),
+}
+
+/// Parses the command line, runs the command and reports any error on standard error.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Scenes) => {
+            for (name, description) in scenes::builtin_scenes() {
+                println!("{name:<18} {description}");
+            }
+            Ok(())
+        }
+        Some(Command::Run(args)) => run(&args),
+        Some(Command::Bench(args)) => crate::bench::run_command(&args).map_err(CliError::from),
+        None => run(&RunArgs {
+            scene: DEFAULT_SCENE.into(),
+            out: "out".into(),
+            ..RunArgs::default()
+        }),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            let mut source = std::error::Error::source(&e);
+            while let Some(s) = source {
+                eprintln!("  caused by: {s}");
+                source = s.source();
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: &RunArgs) -> Result<(), CliError> {
+    let path = Path::new(&args.scene);
+    let (setup, file_format) = if path.extension().is_some_and(|e| e == "toml") || path.is_file() {
+        let file = load_scene(path)?;
+        (file.setup, file.format)
+    } else {
+        let setup = scenes::builtin(&args.scene)
+            .ok_or_else(|| CliError::UnknownScene(args.scene.clone()))??;
+        (setup, FrameFormat::Obj)
+    };
+    let format = match args.format {
+        Some(Format::Obj) => FrameFormat::Obj,
+        Some(Format::Vtk) => FrameFormat::Vtk,
+        None => file_format,
+    };
+    match setup {
+        AnySetup::Two(s) => run_setup(s, args, format, |p| PreviewPositions::Two(p)),
+        AnySetup::Three(s) => run_setup(s, args, format, |p| PreviewPositions::Three(p)),
+    }
+}
+
+fn run_setup<const D: usize>(
+    mut setup: Setup<D>,
+    args: &RunArgs,
+    format: FrameFormat,
+    preview_positions: impl for<'a> Fn(&'a [SVector<f64, D>]) -> PreviewPositions<'a>,
+) -> Result<(), CliError> {
+    if let Some(name) = &args.integrator {
+        setup.settings.integrator = name.parse::<Integrator>().map_err(|e| CliError::Argument {
+            name: "integrator",
+            reason: e.to_string(),
+        })?;
+    }
+    let linear_solver = match &args.linear_solver {
+        Some(name) => Some(
+            name.parse::<LinearSolver>()
+                .map_err(|e| CliError::Argument {
+                    name: "linear-solver",
+                    reason: e.to_string(),
+                })?,
+        ),
+        None => None,
+    };
+    // One flag at a time, so that an error names its flag.
+    for (name, options) in [
+        (
+            "beta",
+            SolverOptions {
+                beta: args.beta,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "linear-solver",
+            SolverOptions {
+                linear_solver,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "iterations",
+            SolverOptions {
+                iterations: args.iterations,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "tolerance",
+            SolverOptions {
+                tolerance: args.tolerance,
+                ..SolverOptions::default()
+            },
+        ),
+    ] {
+        setup
+            .settings
+            .apply_options(&options)
+            .map_err(|e| CliError::Argument {
+                name,
+                reason: e.to_string(),
+            })?;
+    }
+    if let Some(name) = &args.pin_method {
+        setup.settings.pins = name.parse::<PinMethod>().map_err(|e| CliError::Argument {
+            name: "pin-method",
+            reason: e.to_string(),
+        })?;
+    }
+    if let Some(dt) = args.dt {
+        setup.scene = setup.scene.with_time_step(dt)?;
+    }
+    if let Some(steps) = args.steps {
+        if steps == 0 {
+            return Err(CliError::Argument {
+                name: "steps",
+                reason: "must be at least 1".into(),
+            });
+        }
+        setup.steps = steps;
+    }
+    if args.substeps.is_some() {
+        setup.settings.substeps = args.substeps;
+    }
+    setup.settings.allow_unstable |= args.force;
+    if let Some(text) = &args.energy_limit {
+        parse_energy_limit(text)
+            .and_then(|limit| setup.settings.set_energy_limit(limit))
+            .map_err(|e| CliError::Argument {
+                name: "energy-limit",
+                reason: e.to_string(),
+            })?;
+    }
+
+    let frames_dir = args.out.join("frames");
+    std::fs::create_dir_all(&frames_dir).map_err(|source| CliError::Io {
+        path: frames_dir.clone(),
+        source,
+    })?;
+    remove_stale_frames(&frames_dir)?;
+
+    let name = setup.name.clone();
+    let steps = setup.steps;
+    let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings)?;
+    let mesh = sim.scene().mesh().clone();
+    let lines: Vec<[u32; 2]> = if mesh.triangles().is_empty() {
+        mesh.springs().iter().map(|s| [s.i, s.j]).collect()
+    } else {
+        Vec::new()
+    };
+    let write_frame = |index: usize, positions: &[SVector<f64, D>]| -> Result<(), CliError> {
+        let frame = Frame {
+            positions,
+            triangles: mesh.triangles(),
+            tetrahedra: mesh.tetrahedra(),
+            lines: &lines,
+        };
+        match format {
+            FrameFormat::Obj => {
+                save_obj(&frames_dir.join(format!("frame_{index:04}.obj")), &frame)?
+            }
+            FrameFormat::Vtk => {
+                save_vtk(&frames_dir.join(format!("frame_{index:04}.vtk")), &frame)?
+            }
+        }
+        Ok(())
+    };
+
+    let settings = sim.settings();
+    let mut summary = RunSummary {
+        scene: name.clone(),
+        integrator: settings.integrator.name().into(),
+        dimension: D,
+        vertices: mesh.vertex_count(),
+        springs: mesh.springs().len(),
+        time_step: sim.scene().time_step(),
+        substeps: sim.substeps(),
+        solver_settings: {
+            let o = settings.solver_options();
+            (o != SolverOptions::default()).then(|| SolverSettingsRecord {
+                beta: o.beta,
+                linear_solver: o.linear_solver.map(|s| s.name().to_string()),
+                iterations: o.iterations,
+                tolerance: o.tolerance,
+            })
+        },
+        pin_method: Some(settings.pins.name().into()),
+        steps: Vec::with_capacity(steps + 1),
+    };
+    let record = |step: usize, sim: &Simulation<D>, report: Option<crate::sim::StepReport>| {
+        let energy = sim.energy();
+        StepRecord {
+            step,
+            time: sim.state().time,
+            kinetic_energy: energy.kinetic,
+            potential_energy: energy.potential,
+            total_energy: energy.total,
+            max_stretch: sim.scene().max_stretch(sim.state()),
+            solver_iterations: report.and_then(|r| r.solver).map(|s| s.iterations),
+            solver_residual: report.and_then(|r| r.solver).map(|s| s.residual),
+            solver_stop: report
+                .and_then(|r| r.solver)
+                .map(|s| stop_name(s.stop).to_string()),
+            clamped_hessian: report.is_some_and(|r| r.clamped_hessian),
+            halved_into: report
+                .and_then(|r| r.solver)
+                .map(|s| s.substeps)
+                .filter(|&pieces| pieces > 1),
+            wall_time_s: report.map_or(0.0, |r| r.wall_time.as_secs_f64()),
+        }
+    };
+    eprintln!(
+        "{name}: {} vertices, {} springs, {} with {} substep(s) of {:.3e} s (explicit bound ≈ {:.3e} s), {steps} frames",
+        mesh.vertex_count(),
+        mesh.springs().len(),
+        settings.integrator,
+        sim.substeps(),
+        sim.scene().time_step() / sim.substeps() as f64,
+        sim.stability_bound().estimated_step,
+    );
+    let start = Instant::now();
+    write_frame(0, &sim.state().positions)?;
+    summary.steps.push(record(0, &sim, None));
+    let progress = progress_bar(steps as u64, args.quiet);
+    let mut failure = None;
+    for step in 1..=steps {
+        match sim.step() {
+            Ok(report) => {
+                summary.steps.push(record(step, &sim, Some(report)));
+                write_frame(step, &sim.state().positions)?;
+                progress.inc(1);
+            }
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        }
+    }
+    progress.finish_and_clear();
+    let unconverged = summary
+        .steps
+        .iter()
+        .filter(|r| r.solver_stop.as_deref() == Some("iteration-limit"))
+        .count();
+    if unconverged > 0 && settings.integrator != Integrator::ProjectiveDynamics {
+        eprintln!(
+            "warning: the solver stopped at its iteration limit, short of its tolerance, in \
+             {unconverged} step(s) (see solver_stop in summary.json)"
+        );
+    }
+    let clamped = summary.steps.iter().filter(|r| r.clamped_hessian).count();
+    if clamped > 0 {
+        eprintln!(
+            "note: {clamped} step(s) used the clamped spring Hessian: the exact one gave a system \
+             that is not positive definite"
+        );
+    }
+    // The summary is written even after a failure, so that the steps before it can be inspected.
+    write_summary(&args.out.join("summary.json"), &summary)?;
+    if let Some(e) = failure {
+        return Err(e.into());
+    }
+    let state = sim.state();
+    let title = format!("{name}  t = {:.3} s  ({})", state.time, settings.integrator);
+    let bounds_2d = sim.scene().contacts().iter().find_map(|c| match c.shape {
+        crate::sim::Shape::Box { min, max } if D == 2 => Some(([min[0], min[1]], [max[0], max[1]])),
+        _ => None,
+    });
+    render_preview(
+        &args.out.join("preview.png"),
+        &PreviewInput {
+            title: &title,
+            positions: preview_positions(&state.positions),
+            triangles: mesh.triangles(),
+            lines: &lines,
+            pinned: sim.scene().pinned(),
+            bounds_2d,
+        },
+    )?;
+    let first = summary.steps.first().map_or(0.0, |r| r.total_energy);
+    let last = summary.steps.last().map_or(0.0, |r| r.total_energy);
+    eprintln!(
+        "done in {:.2} s: energy {first:.6e} J → {last:.6e} J; wrote {}/frames ({} files), summary.json, preview.png",
+        start.elapsed().as_secs_f64(),
+        args.out.display(),
+        steps + 1
+    );
+    Ok(())
+}
+
+fn stop_name(stop: StopReason) -> &'static str {
+    match stop {
+        StopReason::Converged => "converged",
+        StopReason::IterationLimit => "iteration-limit",
+        StopReason::Stagnated => "stagnated",
+        _ => "other",
+    }
+}
+
+/// Remove frame files of an earlier run, so that the directory holds exactly this run's frames.
+fn remove_stale_frames(dir: &Path) -> Result<(), CliError> {
+    let io = |source| CliError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.starts_with("frame_") && (name.ends_with(".obj") || name.ends_with(".vtk")) {
+            std::fs::remove_file(&path).map_err(|source| CliError::Io {
+                path: path.clone(),
+                source,
+            })?;
+        }
+    }
+    Ok(())
+}
