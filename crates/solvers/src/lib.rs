@@ -32,6 +32,7 @@ pub mod backward_euler;
 pub mod cg;
 pub mod cholesky;
 pub mod jacobi;
+pub mod lbfgs;
 pub mod newton;
 pub mod operator;
 pub mod projective;
@@ -41,6 +42,10 @@ pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
+pub use lbfgs::{
+    Lbfgs, LbfgsError, LbfgsParamError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY,
+    LBFGS_MAX_ITERATIONS,
+};
 pub use newton::{
     IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
     NewtonReport, Relaxation, RelaxationWork,

@@ -17,6 +17,7 @@ use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
+use crate::operator::Preconditioner;
 use crate::report::StopReason;
 
 /// Settings of [`ProjectiveDynamics`].
@@ -253,5 +254,34 @@ impl<const D: usize> ProjectiveDynamics<D> {
         }
         report.wall_time = start.elapsed();
         report
+    }
+}
+
+/// z = (K (M + h² L) Kᵀ ⊗ I_D)⁻¹ r with the prefactored matrix: the initial inverse Hessian of
+/// [`Lbfgs`](crate::Lbfgs) for a backward Euler step (one D-column solve). `r` and `z` are in the
+/// layout of [`BackwardEulerStep`](crate::BackwardEulerStep)'s reduced unknowns: coordinate a of the
+/// f-th free vertex at D·f + a.
+impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
+    #[track_caller]
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        let n_free = self.pattern.free_dofs().free_count();
+        assert_eq!(r.len(), D * n_free, "one value per free DOF");
+        assert_eq!(z.len(), D * n_free, "one value per free DOF");
+        for f in 0..n_free {
+            for a in 0..D {
+                self.columns[a * n_free + f] = r[D * f + a];
+            }
+        }
+        self.cholesky
+            .solve_in_place(MatMut::from_column_major_slice_mut(
+                &mut self.columns,
+                n_free,
+                D,
+            ));
+        for f in 0..n_free {
+            for a in 0..D {
+                z[D * f + a] = self.columns[a * n_free + f];
+            }
+        }
     }
 }

@@ -1,0 +1,201 @@
+//! L-BFGS with projective dynamics' matrix as its initial Hessian, on backward Euler steps: it must
+//! reach Newton's minimiser and never raise Φ.
+
+use hooke_assembly::FreeDofs;
+use hooke_mesh::{generators, SpringMesh};
+use hooke_solvers::{
+    BackwardEulerStep, Lbfgs, LbfgsParams, Newton, NewtonParams, NewtonProblem, PdParams,
+    ProjectiveDynamics, StopReason,
+};
+use nalgebra::Vector3;
+use proptest::prelude::*;
+
+mod common;
+use common::inertial_target;
+
+type V = Vector3<f64>;
+
+/// A backward Euler step on `mesh` with `pinned` held, from rest, whose inertial target is gravity's
+/// h² g plus a transverse wave of `amplitude` (m): a deformed step with compressed springs, not the
+/// trivial one from rest.
+struct Step {
+    problem: BackwardEulerStep<3>,
+    pd: ProjectiveDynamics<3>,
+    /// The start x⁰ = y on the free DOFs.
+    start: Vec<f64>,
+}
+
+fn step(mesh: &SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Step {
+    let x_n = mesh.positions().to_vec();
+    let g = V::new(0.0, -9.81, 0.0);
+    let y = inertial_target(&x_n, pinned, |_, p| {
+        g * (h * h) + V::new(0.0, amplitude * (7.0 * p.x + 3.0 * p.z).sin(), 0.0)
+    });
+    let free = FreeDofs::new(mesh.vertex_count(), pinned).unwrap();
+    let pd =
+        ProjectiveDynamics::<3>::new(mesh.springs(), mesh.masses(), &free, h, PdParams::default())
+            .unwrap();
+    let mut problem = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
+    let mut start = vec![0.0; problem.dim()];
+    problem.set_step(&y, &x_n, &mut start);
+    Step { problem, pd, start }
+}
+
+/// Newton's minimiser x* to a relative gradient of 1e-12 (or its round-off floor).
+fn newton_solution(s: &mut Step) -> Vec<f64> {
+    let mut x = s.start.clone();
+    let params = NewtonParams {
+        tolerance: 1e-12,
+        ..Default::default()
+    };
+    let report = Newton::new(s.problem.pattern(), params)
+        .unwrap()
+        .minimize(&mut s.problem, &mut x)
+        .unwrap();
+    assert!(
+        matches!(report.stop, StopReason::Converged | StopReason::Stagnated),
+        "reference Newton: {:?}",
+        report.stop
+    );
+    x
+}
+
+/// (Φ(x) − Φ*) / (Φ(x⁰) − Φ*), each difference computed without cancellation.
+fn objective_error(s: &mut Step, x: &[f64], solution: &[f64]) -> f64 {
+    let start = s.start.clone();
+    s.problem.objective_change(solution, x) / s.problem.objective_change(solution, &start)
+}
+
+fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32], amplitude: f64) {
+    let mut s = step(mesh, pinned, 1.0 / 30.0, amplitude);
+    let solution = newton_solution(&mut s);
+    let params = LbfgsParams {
+        tolerance: 1e-11,
+        max_iterations: 2000,
+        ..Default::default()
+    };
+    let mut lbfgs = Lbfgs::new(s.problem.dim(), params).unwrap();
+    let mut x = s.start.clone();
+    let report = lbfgs.minimize(&mut s.problem, &mut s.pd, &mut x).unwrap();
+    let error = objective_error(&mut s, &x, &solution);
+    eprintln!(
+        "L-BFGS: {} iterations, relative gradient {:e}, objective error {error:e}, {} pairs skipped, {} restarts, {} trials",
+        report.iterations,
+        report.gradient(),
+        report.skipped_pairs,
+        report.restarts,
+        report.line_search_trials
+    );
+    assert!(
+        matches!(report.stop, StopReason::Converged | StopReason::Stagnated),
+        "{:?} after {} iterations",
+        report.stop,
+        report.iterations
+    );
+    // SPEC §8's objective error; both solvers stop near round-off, so 1e-10 (the bound) has
+    // orders of magnitude of margin over the 1e-11 gradient.
+    assert!(
+        error.abs() <= 1e-10,
+        "objective error {error:e} against Newton's x*"
+    );
+}
+
+#[test]
+fn lbfgs_reaches_newtons_solution_on_cloth_10() {
+    reaches_newton(&generators::cloth(10, 1e3).unwrap(), &[0, 9], 0.05);
+}
+
+#[test]
+fn lbfgs_reaches_newtons_solution_on_beam_2() {
+    let mesh = generators::beam(2).unwrap();
+    let clamped: Vec<u32> = mesh
+        .positions()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.x == 0.0)
+        .map(|(v, _)| v as u32)
+        .collect();
+    reaches_newton(&mesh, &clamped, 0.05);
+}
+
+#[test]
+fn invalid_settings_are_refused_with_the_field_named() {
+    let cases = [
+        LbfgsParams {
+            max_iterations: 0,
+            ..Default::default()
+        },
+        LbfgsParams {
+            tolerance: f64::NAN,
+            ..Default::default()
+        },
+        LbfgsParams {
+            history: 0,
+            ..Default::default()
+        },
+        LbfgsParams {
+            armijo: 1.0,
+            ..Default::default()
+        },
+        LbfgsParams {
+            max_iterations: usize::MAX,
+            ..Default::default()
+        },
+    ];
+    let fields = [
+        "max_iterations",
+        "tolerance",
+        "history",
+        "armijo",
+        "max_iterations",
+    ];
+    for (params, field) in cases.iter().zip(fields) {
+        let error = Lbfgs::new(3, *params).unwrap_err();
+        assert_eq!(error.field, field, "{params:?}");
+        assert!(error.to_string().contains(field));
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Φ never increases along L-BFGS: the k-th iterate is the result of a run limited to k
+    /// iterations (the solver is deterministic), and its Φ is compared with the (k−1)-th's by the
+    /// problem's own exact change and by plain differences of Φ.
+    #[test]
+    fn lbfgs_never_raises_the_objective(
+        n in 4usize..9,
+        stiffness in prop::sample::select(vec![1e2, 1e3, 1e5]),
+        h in prop::sample::select(vec![1.0 / 120.0, 1.0 / 30.0, 1.0 / 5.0]),
+        amplitude in 0.0f64..0.2,
+        history in 1usize..8,
+    ) {
+        let mesh = generators::cloth(n, stiffness).unwrap();
+        let mut s = step(&mesh, &[0, n as u32 - 1], h, amplitude);
+        let mut previous = s.start.clone();
+        for k in 1..=12 {
+            let params = LbfgsParams { max_iterations: k, tolerance: 0.0, history, ..Default::default() };
+            let mut x = s.start.clone();
+            let report = Lbfgs::new(s.problem.dim(), params)
+                .unwrap()
+                .minimize(&mut s.problem, &mut s.pd, &mut x);
+            let Ok(report) = report else {
+                // A failed search must not have moved x above the start either.
+                prop_assert!(s.problem.objective_change(&s.start.clone(), &x) <= 0.0);
+                break;
+            };
+            let change = s.problem.objective_change(&previous, &x);
+            prop_assert!(change <= 0.0, "iteration {k}: Φ rose by {change:e}");
+            // The report's sum of accepted changes is the change from the start.
+            let total = s.problem.objective_change(&s.start.clone(), &x);
+            prop_assert!(
+                (report.objective_change - total).abs() <= 1e-9 * total.abs().max(f64::MIN_POSITIVE),
+                "reported {:e}, measured {:e}", report.objective_change, total
+            );
+            if report.iterations < k {
+                break; // converged or stagnated
+            }
+            previous = x;
+        }
+    }
+}
