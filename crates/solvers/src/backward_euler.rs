@@ -24,7 +24,7 @@ const REGION_NOISE_FACTOR: f64 = 8.0;
 /// ½ k (|r + Δr| − l)² − ½ k (|r| − l)², written without subtracting two rounded energies:
 /// (|r_t| − |r|)(|r_t| + |r| − 2l) k/2 with |r_t| − |r| = Δr·(2r + Δr)/(|r_t| + |r|).
 #[inline]
-fn spring_energy_change<const D: usize>(
+pub(crate) fn spring_energy_change<const D: usize>(
     stiffness: f64,
     rest_length: f64,
     r: &SVector<f64, D>,

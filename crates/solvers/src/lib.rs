@@ -30,6 +30,7 @@ pub use faer;
 
 pub mod backward_euler;
 pub mod cg;
+pub mod chebyshev;
 pub mod cholesky;
 pub mod jacobi;
 pub mod lbfgs;
@@ -40,6 +41,9 @@ mod report;
 
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
+pub use chebyshev::{
+    ChebyshevParamError, ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS,
+};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
 pub use lbfgs::{

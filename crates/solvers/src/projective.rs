@@ -16,6 +16,7 @@ use hooke_assembly::{spring_energy, FreeDofs};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
+use crate::backward_euler::spring_energy_change;
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 use crate::operator::Preconditioner;
 use crate::report::StopReason;
@@ -189,6 +190,39 @@ impl<const D: usize> ProjectiveDynamics<D> {
         inertia + self.h * self.h * spring_energy(springs, x, self.params.parallel)
     }
 
+    /// Φ(trial) − Φ(x) without subtracting two rounded values of Φ: term by term, each spring's
+    /// through |r_t| − |r| = Δr·(2r + Δr)/(|r_t| + |r|), so that changes far below ε·Φ are resolved
+    /// (as [`crate::NewtonProblem::objective_change`] for backward Euler). Pinned vertices must be at
+    /// the same place in both.
+    pub fn objective_change(
+        &self,
+        springs: &[Spring],
+        y: &[SVector<f64, D>],
+        x: &[SVector<f64, D>],
+        trial: &[SVector<f64, D>],
+    ) -> f64 {
+        let inertia: f64 = self
+            .masses
+            .iter()
+            .zip(x.iter().zip(trial).zip(y))
+            .map(|(m, ((x, t), y))| {
+                let delta = t - x;
+                0.5 * m * delta.dot(&((x - y) * 2.0 + delta))
+            })
+            .sum();
+        let energy = hooke_assembly::deterministic_sum(springs.len(), self.params.parallel, |s| {
+            let (i, j) = springs[s].ends();
+            let r = x[i] - x[j];
+            spring_energy_change(
+                springs[s].stiffness,
+                springs[s].rest_length,
+                &r,
+                &(trial[i] - trial[j] - r),
+            )
+        });
+        inertia + self.h * self.h * energy
+    }
+
     /// Run projective dynamics for the step with inertial target `y` (per vertex, m). `x` holds the
     /// initial guess (usually y) with the pinned vertices at their prescribed positions, and the
     /// result on return (pinned vertices untouched).
@@ -203,7 +237,6 @@ impl<const D: usize> ProjectiveDynamics<D> {
         x: &mut [SVector<f64, D>],
     ) -> PdReport {
         let start = Instant::now();
-        let n_free = self.pattern.free_dofs().free_count();
         let p = self.params;
         let mut report = PdReport {
             iterations: 0,
@@ -221,27 +254,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
         }
         let mut largest_displacement: f64 = 0.0;
         while report.iterations < p.max_iterations {
-            local_step(springs, x, &mut self.d, p.parallel);
-            self.pattern
-                .rhs_into(springs, &self.d, y, x, &self.masses, self.h, &mut self.rhs);
-            for (f, r) in self.rhs.iter().enumerate() {
-                for a in 0..D {
-                    self.columns[a * n_free + f] = r[a];
-                }
-            }
-            self.cholesky
-                .solve_in_place(MatMut::from_column_major_slice_mut(
-                    &mut self.columns,
-                    n_free,
-                    D,
-                ));
-            let mut change: f64 = 0.0;
-            for (f, &vertex) in self.pattern.free_dofs().free_vertices().iter().enumerate() {
-                let new = SVector::<f64, D>::from_fn(|a, _| self.columns[a * n_free + f]);
-                change = change.max((new - x[vertex as usize]).amax());
-                x[vertex as usize] = new;
-                largest_displacement = largest_displacement.max((new - y[vertex as usize]).amax());
-            }
+            let change = self.iteration(springs, y, x, &mut largest_displacement);
             report.iterations += 1;
             report.changes.push(change);
             if p.record_objective {
@@ -254,6 +267,46 @@ impl<const D: usize> ProjectiveDynamics<D> {
         }
         report.wall_time = start.elapsed();
         report
+    }
+
+    /// One iteration (local step, right-hand side, D-column solve) from `x`, written into `x`:
+    /// returns the largest change of a position (m) and raises `largest_displacement` to the
+    /// largest distance of a new position from y (m).
+    pub(crate) fn iteration(
+        &mut self,
+        springs: &[Spring],
+        y: &[SVector<f64, D>],
+        x: &mut [SVector<f64, D>],
+        largest_displacement: &mut f64,
+    ) -> f64 {
+        let n_free = self.pattern.free_dofs().free_count();
+        local_step(springs, x, &mut self.d, self.params.parallel);
+        self.pattern
+            .rhs_into(springs, &self.d, y, x, &self.masses, self.h, &mut self.rhs);
+        for (f, r) in self.rhs.iter().enumerate() {
+            for a in 0..D {
+                self.columns[a * n_free + f] = r[a];
+            }
+        }
+        self.cholesky
+            .solve_in_place(MatMut::from_column_major_slice_mut(
+                &mut self.columns,
+                n_free,
+                D,
+            ));
+        let mut change: f64 = 0.0;
+        for (f, &vertex) in self.pattern.free_dofs().free_vertices().iter().enumerate() {
+            let new = SVector::<f64, D>::from_fn(|a, _| self.columns[a * n_free + f]);
+            change = change.max((new - x[vertex as usize]).amax());
+            x[vertex as usize] = new;
+            *largest_displacement = largest_displacement.max((new - y[vertex as usize]).amax());
+        }
+        change
+    }
+
+    /// The free vertices, in the order of the reduced unknowns.
+    pub(crate) fn free_vertices(&self) -> &[u32] {
+        self.pattern.free_dofs().free_vertices()
     }
 }
 

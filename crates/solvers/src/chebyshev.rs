@@ -1,0 +1,274 @@
+//! Chebyshev-accelerated projective dynamics (Wang, "A Chebyshev Semi-Iterative Approach for
+//! Accelerating Projective and Position-based Dynamics", ACM TOG 2015).
+//!
+//! Plain PD converges linearly, at a rate ρ close to 1 on cloth. The Chebyshev semi-iterative method
+//! extrapolates each PD iterate x̂ₖ₊₁ from the two before it,
+//!
+//! qₖ₊₁ = ωₖ₊₁ (γ (x̂ₖ₊₁ − qₖ) + qₖ − qₖ₋₁) + qₖ₋₁,
+//!
+//! with ω = 1 for the first S iterations (the delay), then ω = 2 / (2 − ρ²) and
+//! ωₖ₊₁ = 4 / (4 − ρ² ωₖ): the rate becomes about 1 − √(1 − ρ) per iteration. ρ is the scene's
+//! (estimate it once from plain PD with [`ProjectiveDynamics::estimate_rate`]); γ under-relaxes.
+//!
+//! PD is a fixed-point iteration on a non-convex Φ, so the extrapolation can overshoot and raise Φ
+//! (it does on stiff cloth at large steps). The change of Φ is computed after every iteration, term
+//! by term (one pass over springs and vertices); when it is positive, the extrapolated point is
+//! dropped for the plain PD iterate x̂ (which does not raise Φ) and the schedule restarts with
+//! ω = 1: Φ then never increases, as along plain PD.
+
+use std::time::{Duration, Instant};
+
+use hooke_mesh::Spring;
+use nalgebra::SVector;
+
+use crate::projective::ProjectiveDynamics;
+use crate::report::StopReason;
+
+/// Settings of [`ChebyshevPd`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChebyshevParams {
+    /// Iterations per step. Default 10.
+    pub max_iterations: usize,
+    /// ρ, the convergence rate of plain PD on the scene (its spectral radius), in (0, 1). No default
+    /// fits every scene: estimate it with [`ProjectiveDynamics::estimate_rate`]. Default 0.99.
+    pub rate: f64,
+    /// Plain PD iterations before the acceleration starts, and after each restart (S). Default 2:
+    /// the step's budget is about 10 iterations, and the first ones move far from the start.
+    pub delay: usize,
+    /// Under-relaxation γ in (0, 1]. Default 1 (none).
+    pub under_relaxation: f64,
+    /// Restart to plain PD when Φ rises. Default true; `false` is the paper's unguarded method, for
+    /// comparison only (it can gain energy).
+    pub restart: bool,
+    /// Stop when the largest change of a position in one iteration is at most `tolerance` times
+    /// the largest displacement from the initial guess, as [`crate::PdParams::tolerance`]. Default 0.
+    pub tolerance: f64,
+}
+
+impl Default for ChebyshevParams {
+    fn default() -> Self {
+        ChebyshevParams {
+            max_iterations: 10,
+            rate: 0.99,
+            delay: 2,
+            under_relaxation: 1.0,
+            restart: true,
+            tolerance: 0.0,
+        }
+    }
+}
+
+/// The most iterations [`ChebyshevParams::max_iterations`] may ask for.
+pub const CHEBYSHEV_MAX_ITERATIONS: usize = 1 << 24;
+
+/// A parameter of [`ChebyshevParams`] outside its allowed range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("ChebyshevParams::{field} = {value} is outside its allowed range: {allowed}")]
+pub struct ChebyshevParamError {
+    /// The field's name.
+    pub field: &'static str,
+    /// Its value.
+    pub value: String,
+    /// The allowed range.
+    pub allowed: &'static str,
+}
+
+impl ChebyshevParams {
+    /// Check every field.
+    ///
+    /// # Errors
+    /// [`ChebyshevParamError`] naming the first field outside its range: `max_iterations` in
+    /// 1..=[`CHEBYSHEV_MAX_ITERATIONS`], `rate` in (0, 1), `under_relaxation` in (0, 1],
+    /// `tolerance` finite and ≥ 0 (`delay` may be any value: at or beyond the budget it is plain
+    /// PD).
+    pub fn validate(&self) -> Result<(), ChebyshevParamError> {
+        let err = |field, value: String, allowed| {
+            Err(ChebyshevParamError {
+                field,
+                value,
+                allowed,
+            })
+        };
+        if !(1..=CHEBYSHEV_MAX_ITERATIONS).contains(&self.max_iterations) {
+            return err(
+                "max_iterations",
+                self.max_iterations.to_string(),
+                "1 ..= 2^24",
+            );
+        }
+        if !(self.rate > 0.0 && self.rate < 1.0) {
+            return err("rate", format!("{:?}", self.rate), "(0, 1)");
+        }
+        if !(self.under_relaxation > 0.0 && self.under_relaxation <= 1.0) {
+            return err(
+                "under_relaxation",
+                format!("{:?}", self.under_relaxation),
+                "(0, 1]",
+            );
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return err(
+                "tolerance",
+                format!("{:?}", self.tolerance),
+                "finite and >= 0",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The account of one accelerated solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChebyshevReport {
+    /// Iterations performed (each one PD iteration and one evaluation of Φ).
+    pub iterations: usize,
+    /// Φ before the first iteration and after each one (J·s²), the first evaluated and the others
+    /// accumulated from the exactly computed changes ([`ProjectiveDynamics::objective_change`]),
+    /// so that changes below Φ's rounding are kept: never increasing when
+    /// [`ChebyshevParams::restart`] is on, but for a plain PD iterate's rounding.
+    pub objectives: Vec<f64>,
+    /// Largest position change (m) in each iteration.
+    pub changes: Vec<f64>,
+    /// Restarts to plain PD (Φ rose at an extrapolated point).
+    pub restarts: usize,
+    /// Why it stopped.
+    pub stop: StopReason,
+    /// Wall time of the solve.
+    pub wall_time: Duration,
+}
+
+/// Chebyshev-accelerated projective dynamics over a [`ProjectiveDynamics`] (whose factor it uses),
+/// with its buffers kept across steps.
+#[derive(Clone, Debug)]
+pub struct ChebyshevPd<const D: usize> {
+    params: ChebyshevParams,
+    /// qₖ₋₁, qₖ and the plain iterate x̂ₖ₊₁, per vertex.
+    previous: Vec<SVector<f64, D>>,
+    current: Vec<SVector<f64, D>>,
+    plain: Vec<SVector<f64, D>>,
+}
+
+impl<const D: usize> ChebyshevPd<D> {
+    /// Accelerated PD for meshes of `vertex_count` vertices.
+    ///
+    /// # Errors
+    /// [`ChebyshevParamError`] if `params` is invalid.
+    pub fn new(vertex_count: usize, params: ChebyshevParams) -> Result<Self, ChebyshevParamError> {
+        params.validate()?;
+        Ok(ChebyshevPd {
+            params,
+            previous: vec![SVector::zeros(); vertex_count],
+            current: vec![SVector::zeros(); vertex_count],
+            plain: vec![SVector::zeros(); vertex_count],
+        })
+    }
+
+    /// The settings.
+    pub fn params(&self) -> ChebyshevParams {
+        self.params
+    }
+
+    /// Solve the step with inertial target `y` as [`ProjectiveDynamics::solve`] does (`x` the
+    /// initial guess with the pinned vertices in place, and the result), accelerated.
+    ///
+    /// # Panics
+    /// If the lengths of `springs`, `y` or `x` do not match `pd`'s system or this solver's size.
+    #[track_caller]
+    pub fn solve(
+        &mut self,
+        pd: &mut ProjectiveDynamics<D>,
+        springs: &[Spring],
+        y: &[SVector<f64, D>],
+        x: &mut [SVector<f64, D>],
+    ) -> ChebyshevReport {
+        assert_eq!(x.len(), self.current.len(), "one position per vertex");
+        let start = Instant::now();
+        let p = self.params;
+        let reserve = p.max_iterations.min(4096);
+        let mut report = ChebyshevReport {
+            iterations: 0,
+            objectives: Vec::with_capacity(reserve + 1),
+            changes: Vec::with_capacity(reserve),
+            restarts: 0,
+            stop: StopReason::IterationLimit,
+            wall_time: Duration::ZERO,
+        };
+        let mut phi = pd.objective(springs, y, x);
+        report.objectives.push(phi);
+        self.previous.copy_from_slice(x);
+        let mut largest_displacement: f64 = 0.0;
+        // Iterations since the start or the last restart, and the current ω.
+        let (mut since, mut omega) = (0usize, 1.0);
+        let rho2 = p.rate * p.rate;
+        while report.iterations < p.max_iterations {
+            self.current.copy_from_slice(x);
+            let change = pd.iteration(springs, y, x, &mut largest_displacement);
+            omega = match since.cmp(&p.delay) {
+                std::cmp::Ordering::Less => 1.0,
+                std::cmp::Ordering::Equal => 2.0 / (2.0 - rho2),
+                std::cmp::Ordering::Greater => 4.0 / (4.0 - rho2 * omega),
+            };
+            let extrapolated = omega != 1.0 || p.under_relaxation != 1.0;
+            if extrapolated {
+                self.plain.copy_from_slice(x);
+                let gamma = p.under_relaxation;
+                for &v in pd.free_vertices() {
+                    let v = v as usize;
+                    let (q, q_old) = (self.current[v], self.previous[v]);
+                    x[v] = omega * (gamma * (self.plain[v] - q) + q - q_old) + q_old;
+                }
+            }
+            // Φ(x) − Φ(qₖ), exact to rounding (no cancellation of two values of Φ).
+            let mut rise = pd.objective_change(springs, y, &self.current, x);
+            // A NaN change counts as a rise.
+            if extrapolated && p.restart && (rise > 0.0 || rise.is_nan()) {
+                x.copy_from_slice(&self.plain);
+                rise = pd.objective_change(springs, y, &self.current, x);
+                since = 0;
+                omega = 1.0;
+                report.restarts += 1;
+            } else {
+                since += 1;
+            }
+            let phi_new = phi + rise;
+            std::mem::swap(&mut self.previous, &mut self.current);
+            phi = phi_new;
+            report.iterations += 1;
+            report.objectives.push(phi);
+            report.changes.push(change);
+            if change <= p.tolerance * largest_displacement {
+                report.stop = StopReason::Converged;
+                break;
+            }
+        }
+        report.wall_time = start.elapsed();
+        report
+    }
+}
+
+impl<const D: usize> ProjectiveDynamics<D> {
+    /// Estimate plain PD's convergence rate ρ on a step: run `iterations` (at least 4) plain
+    /// iterations from `x` (left unchanged) and return the geometric mean of the ratios of
+    /// successive position changes over the second half of them, the part where the slowest mode
+    /// dominates. Returns `None` when the iteration converged to round-off before the estimate
+    /// could form (any ρ then works) or the ratio is not in (0, 1).
+    pub fn estimate_rate(
+        &mut self,
+        springs: &[Spring],
+        y: &[SVector<f64, D>],
+        x: &[SVector<f64, D>],
+        iterations: usize,
+    ) -> Option<f64> {
+        let iterations = iterations.max(4);
+        let mut work = x.to_vec();
+        let mut largest_displacement = 0.0;
+        let mut changes = Vec::with_capacity(iterations);
+        for _ in 0..iterations {
+            changes.push(self.iteration(springs, y, &mut work, &mut largest_displacement));
+        }
+        let (a, b) = (changes[iterations / 2], changes[iterations - 1]);
+        let span = (iterations - 1 - iterations / 2) as f64;
+        let rate = (b / a).powf(1.0 / span);
+        (a > 0.0 && b > 0.0 && rate > 0.0 && rate < 1.0).then_some(rate)
+    }
+}
