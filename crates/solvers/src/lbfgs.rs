@@ -24,7 +24,7 @@
 use std::time::{Duration, Instant};
 
 use crate::newton::NewtonProblem;
-use crate::operator::Preconditioner;
+use crate::operator::{dot, Preconditioner};
 use crate::report::StopReason;
 
 /// Settings of [`Lbfgs`].
@@ -393,10 +393,6 @@ fn s_of(s: &[f64], k: usize, n: usize) -> &[f64] {
 
 fn t_of(t: &[f64], k: usize, n: usize) -> &[f64] {
     &t[k * n..(k + 1) * n]
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
 
 fn norm(a: &[f64]) -> f64 {

@@ -35,6 +35,7 @@ pub mod cholesky;
 pub mod jacobi;
 pub mod lbfgs;
 pub mod newton;
+pub mod newton_cg;
 pub mod operator;
 pub mod projective;
 mod report;
@@ -53,6 +54,10 @@ pub use lbfgs::{
 pub use newton::{
     IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
     NewtonReport, Relaxation, RelaxationWork,
+};
+pub use newton_cg::{
+    NewtonCg, NewtonCgError, NewtonCgParamError, NewtonCgParams, NewtonCgReport,
+    NEWTON_CG_MAX_ITERATIONS,
 };
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use projective::{PdParams, PdReport, ProjectiveDynamics};
