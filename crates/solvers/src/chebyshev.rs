@@ -13,8 +13,9 @@
 //! PD is a fixed-point iteration on a non-convex Φ, so the extrapolation can overshoot and raise Φ
 //! (it does on stiff cloth at large steps). The change of Φ is computed after every iteration, term
 //! by term (one pass over springs and vertices); when it is positive, the extrapolated point is
-//! dropped for the plain PD iterate x̂ (which does not raise Φ) and the schedule restarts with
-//! ω = 1: Φ then never increases, as along plain PD.
+//! dropped for the plain PD iterate x̂ (which does not raise Φ but for the rounding of its global
+//! solve) and the schedule restarts with ω = 1. If even x̂ rises, PD is at its rounding floor: the
+//! solve keeps the last point and stops as [`StopReason::Stagnated`]. Φ never increases.
 
 use std::time::{Duration, Instant};
 
@@ -218,17 +219,39 @@ impl<const D: usize> ChebyshevPd<D> {
                     x[v] = omega * (gamma * (self.plain[v] - q) + q - q_old) + q_old;
                 }
             }
-            // Φ(x) − Φ(qₖ), exact to rounding (no cancellation of two values of Φ).
+            // Φ(x) − Φ(qₖ), exact to rounding (no cancellation of two values of Φ); NaN counts as
+            // a rise.
             let mut rise = pd.objective_change(springs, y, &self.current, x);
-            // A NaN change counts as a rise.
-            if extrapolated && p.restart && (rise > 0.0 || rise.is_nan()) {
-                x.copy_from_slice(&self.plain);
-                rise = pd.objective_change(springs, y, &self.current, x);
-                since = 0;
-                omega = 1.0;
-                report.restarts += 1;
+            let mut change = change;
+            if p.restart && (rise > 0.0 || rise.is_nan()) {
+                if extrapolated {
+                    x.copy_from_slice(&self.plain);
+                    rise = pd.objective_change(springs, y, &self.current, x);
+                    since = 0;
+                    omega = 1.0;
+                    report.restarts += 1;
+                }
+                if rise > 0.0 || rise.is_nan() {
+                    // Even the plain iterate rose: PD is at the rounding floor of its global solve
+                    // (its positions are exact to about ε|x|). Keep qₖ and stop.
+                    x.copy_from_slice(&self.current);
+                    report.iterations += 1;
+                    report.objectives.push(phi);
+                    report.changes.push(0.0);
+                    report.stop = StopReason::Stagnated;
+                    break;
+                }
             } else {
                 since += 1;
+            }
+            if extrapolated {
+                // The position change of the accepted point, not of the plain iterate.
+                change = self
+                    .current
+                    .iter()
+                    .zip(x.iter())
+                    .map(|(a, b)| (a - b).amax())
+                    .fold(0.0, f64::max);
             }
             let phi_new = phi + rise;
             std::mem::swap(&mut self.previous, &mut self.current);

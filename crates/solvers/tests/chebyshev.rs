@@ -102,10 +102,16 @@ fn reaches_newton(mesh: SpringMesh<3>, pinned: &[u32]) {
     let (x, report) = s.solve(params);
     let error = s.objective_error(&x);
     eprintln!(
-        "ρ = {rate}: {} iterations, {} restarts, objective error {error:e}",
-        report.iterations, report.restarts
+        "ρ = {rate}: {} iterations, {} restarts, {:?}, objective error {error:e}",
+        report.iterations, report.restarts, report.stop
     );
-    assert_eq!(report.stop, StopReason::Converged);
+    // Converged by the position change, or stopped at PD's rounding floor (even the plain iterate
+    // raised Φ), which must then be within the bound below.
+    assert!(
+        matches!(report.stop, StopReason::Converged | StopReason::Stagnated),
+        "{:?}",
+        report.stop
+    );
     // SPEC §8's objective error; the bound.
     assert!(error.abs() <= 1e-10, "objective error {error:e}");
 }
