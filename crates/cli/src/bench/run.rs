@@ -3,8 +3,8 @@
 use std::time::{Duration, Instant};
 
 use hooke_solvers::{
-    BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
-    StopReason,
+    BackwardEulerStep, ChebyshevParams, ChebyshevPd, Lbfgs, LbfgsParams, Newton, NewtonCg,
+    NewtonCgParams, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -14,8 +14,10 @@ use crate::sim::{Integrator, LinearSolver, LinearizedParams, Settings, Simulatio
 
 /// Iteration limit of the tolerance-driven PD, CG and Jacobi runs.
 const TOLERANCE_RUN_LIMIT: usize = 10_000;
-/// Newton's iteration limit for `newton-tol`.
+/// Newton's iteration limit for `newton-tol` and `newton-cg-tol`.
 const NEWTON_TOLERANCE_LIMIT: usize = 500;
+/// Plain PD iterations from which `chebyshev` estimates ρ, once per scene.
+const CHEBYSHEV_RATE_ITERATIONS: usize = 20;
 
 /// One line of the report: what `--json` and `--csv` write, with exactly these fields (`null` /
 /// empty where a value was not computed).
@@ -202,6 +204,18 @@ enum Runner {
     Linearized {
         solver: LinearSolver,
     },
+    /// L-BFGS or Newton-CG: the objective, and PD's factor as initial Hessian / preconditioner.
+    QuasiNewton {
+        kind: SolverKind,
+        pd: Box<ProjectiveDynamics<3>>,
+        objective: Box<BackwardEulerStep<3>>,
+        unknowns: Vec<f64>,
+    },
+    Chebyshev {
+        pd: Box<ProjectiveDynamics<3>>,
+        rate: f64,
+        x: Vec<Vector3<f64>>,
+    },
 }
 
 impl Runner {
@@ -213,18 +227,49 @@ impl Runner {
             solver: kind.name().into(),
             reason: e,
         };
+        let pd = || {
+            ProjectiveDynamics::new(
+                mesh.springs(),
+                mesh.masses(),
+                &problem.free(),
+                h,
+                PdParams::default(),
+            )
+            .map(Box::new)
+            .map_err(|e| solver_error(e.to_string()))
+        };
         Ok(match kind {
-            SolverKind::Pd | SolverKind::PdTol => {
-                let pd = ProjectiveDynamics::new(
-                    mesh.springs(),
-                    mesh.masses(),
-                    &problem.free(),
-                    h,
-                    PdParams::default(),
-                )
-                .map_err(|e| solver_error(e.to_string()))?;
-                Runner::Pd {
-                    pd: Box::new(pd),
+            SolverKind::Pd | SolverKind::PdTol => Runner::Pd {
+                pd: pd()?,
+                x: problem.y.clone(),
+            },
+            SolverKind::Lbfgs
+            | SolverKind::LbfgsTol
+            | SolverKind::NewtonCg
+            | SolverKind::NewtonCgTol => {
+                let objective =
+                    BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
+                Runner::QuasiNewton {
+                    kind,
+                    pd: pd()?,
+                    unknowns: vec![0.0; objective.dim()],
+                    objective: Box::new(objective),
+                }
+            }
+            SolverKind::Chebyshev => {
+                let mut pd = pd()?;
+                // ρ of plain PD on this scene; 0.99 if PD converges too fast to tell.
+                let rate = pd
+                    .estimate_rate(
+                        mesh.springs(),
+                        &problem.y,
+                        &problem.y,
+                        CHEBYSHEV_RATE_ITERATIONS,
+                    )
+                    .unwrap_or(ChebyshevParams::default().rate);
+                Runner::Chebyshev {
+                    pd,
+                    rate,
                     x: problem.y.clone(),
                 }
             }
@@ -337,6 +382,116 @@ impl Runner {
                     wall: report.wall_time,
                     factor: Some(report.factor_time),
                     note,
+                })
+            }
+            Runner::QuasiNewton {
+                kind,
+                pd,
+                objective,
+                unknowns,
+            } => {
+                objective.set_step(&problem.y, &problem.start.positions, unknowns);
+                let (iterations, wall, stop, gradient, detail) =
+                    if matches!(kind, SolverKind::Lbfgs | SolverKind::LbfgsTol) {
+                        let defaults = LbfgsParams::default();
+                        let (max_iterations, tolerance) = Self::limits(
+                            setting,
+                            TOLERANCE_RUN_LIMIT,
+                            (defaults.max_iterations, defaults.tolerance),
+                        );
+                        let params = LbfgsParams {
+                            max_iterations,
+                            tolerance,
+                            ..defaults
+                        };
+                        let mut lbfgs =
+                            Lbfgs::new(unknowns.len(), params).map_err(|e| e.to_string())?;
+                        let r = lbfgs
+                            .minimize(objective.as_mut(), pd.as_mut(), unknowns)
+                            .map_err(|e| e.to_string())?;
+                        let detail = (r.skipped_pairs > 0 || r.restarts > 0).then(|| {
+                            format!(
+                                "{} curvature pair(s) skipped, {} restart(s)",
+                                r.skipped_pairs, r.restarts
+                            )
+                        });
+                        (r.iterations, r.wall_time, r.stop, r.gradient(), detail)
+                    } else {
+                        let defaults = NewtonCgParams::default();
+                        let (max_iterations, tolerance) = Self::limits(
+                            setting,
+                            NEWTON_TOLERANCE_LIMIT,
+                            (defaults.max_iterations, defaults.tolerance),
+                        );
+                        let params = NewtonCgParams {
+                            max_iterations,
+                            tolerance,
+                            ..defaults
+                        };
+                        let mut solver =
+                            NewtonCg::new(unknowns.len(), params).map_err(|e| e.to_string())?;
+                        let r = solver
+                            .minimize(objective.as_mut(), pd.as_mut(), unknowns)
+                            .map_err(|e| e.to_string())?;
+                        let mut detail = format!("{} CG iterations", r.cg_iterations);
+                        if r.negative_curvature > 0 {
+                            detail += &format!(", {} at negative curvature", r.negative_curvature);
+                        }
+                        if r.cg_limit_hits > 0 {
+                            detail += &format!(", {} at the CG limit", r.cg_limit_hits);
+                        }
+                        (
+                            r.iterations,
+                            r.wall_time,
+                            r.stop,
+                            r.gradient(),
+                            Some(detail),
+                        )
+                    };
+                let stop_note = match (setting, stop) {
+                    (_, StopReason::Stagnated) => Some(format!(
+                        "stagnated at the round-off floor, relative gradient {gradient:.1e}"
+                    )),
+                    (Setting::Tolerance(_), StopReason::IterationLimit) => {
+                        Some("stopped at its iteration limit".to_string())
+                    }
+                    _ => None,
+                };
+                Ok(RunResult {
+                    positions: objective.positions(unknowns).to_vec(),
+                    iterations,
+                    wall,
+                    factor: Some(pd.factor_time()),
+                    note: [stop_note, detail]
+                        .into_iter()
+                        .flatten()
+                        .reduce(|a, b| format!("{a}; {b}")),
+                })
+            }
+            Runner::Chebyshev { pd, rate, x } => {
+                let (max_iterations, _) = Self::limits(setting, TOLERANCE_RUN_LIMIT, (10, 0.0));
+                let params = ChebyshevParams {
+                    max_iterations,
+                    rate: *rate,
+                    ..ChebyshevParams::default()
+                };
+                let mut solver =
+                    ChebyshevPd::<3>::new(x.len(), params).map_err(|e| e.to_string())?;
+                x.copy_from_slice(&problem.y);
+                let report = solver.solve(pd, springs, &problem.y, x);
+                let mut note = format!("ρ = {rate:.4}");
+                if report.restarts > 0 {
+                    note += &format!(", {} restart(s)", report.restarts);
+                }
+                if report.stop == StopReason::Stagnated {
+                    note += ", stopped at PD's rounding floor";
+                }
+                Ok(RunResult {
+                    positions: x.clone(),
+                    iterations: report.iterations,
+                    wall: report.wall_time,
+                    factor: Some(pd.factor_time()),
+                    note: Some(note),
                 })
             }
             Runner::Linearized { solver } => {

@@ -34,6 +34,19 @@ pub enum SolverKind {
     LinearizedCg,
     /// `linearized-jacobi`: the linearised integrator (β = 1) with block Jacobi to 1e-8.
     LinearizedJacobi,
+    /// `lbfgs:K`: L-BFGS on Φ from x⁰ = y with PD's prefactored matrix as initial Hessian, K
+    /// iterations (history 5; the factorisation is done once, apart, as PD's).
+    Lbfgs,
+    /// `lbfgs-tol:T`: as `lbfgs`, until the relative gradient ≤ T (at most 10,000 iterations).
+    LbfgsTol,
+    /// `chebyshev:K`: Chebyshev-accelerated PD, K iterations, ρ estimated once per scene from 20
+    /// plain PD iterations of the step (not timed, as the factorisation).
+    Chebyshev,
+    /// `newton-cg:K`: inexact Newton (PCG on the exact Hessian, preconditioned by PD's factor,
+    /// Eisenstat–Walker forcing), K Newton iterations.
+    NewtonCg,
+    /// `newton-cg-tol:T`: as `newton-cg`, until the relative gradient ≤ T (at most 500 iterations).
+    NewtonCgTol,
 }
 
 impl SolverKind {
@@ -49,6 +62,11 @@ impl SolverKind {
         SolverKind::JacobiTol,
         SolverKind::LinearizedCg,
         SolverKind::LinearizedJacobi,
+        SolverKind::Lbfgs,
+        SolverKind::LbfgsTol,
+        SolverKind::Chebyshev,
+        SolverKind::NewtonCg,
+        SolverKind::NewtonCgTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -64,19 +82,30 @@ impl SolverKind {
             SolverKind::JacobiTol => "jacobi-tol",
             SolverKind::LinearizedCg => "linearized-cg",
             SolverKind::LinearizedJacobi => "linearized-jacobi",
+            SolverKind::Lbfgs => "lbfgs",
+            SolverKind::LbfgsTol => "lbfgs-tol",
+            SolverKind::Chebyshev => "chebyshev",
+            SolverKind::NewtonCg => "newton-cg",
+            SolverKind::NewtonCgTol => "newton-cg-tol",
         }
     }
 
     /// What the values of this kind are: iteration counts, tolerances, or none.
     fn values(self) -> Values {
         match self {
-            SolverKind::Pd | SolverKind::Newton | SolverKind::Cg | SolverKind::Jacobi => {
-                Values::Iterations
-            }
+            SolverKind::Pd
+            | SolverKind::Newton
+            | SolverKind::Cg
+            | SolverKind::Jacobi
+            | SolverKind::Lbfgs
+            | SolverKind::Chebyshev
+            | SolverKind::NewtonCg => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
-            | SolverKind::JacobiTol => Values::Tolerances,
+            | SolverKind::JacobiTol
+            | SolverKind::LbfgsTol
+            | SolverKind::NewtonCgTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -95,6 +124,11 @@ impl SolverKind {
             SolverKind::Jacobi => iterations(&[10, 100]),
             SolverKind::JacobiTol => tolerances(&[1e-2, 1e-4]),
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => vec![Setting::Default],
+            SolverKind::Lbfgs => iterations(&[5, 10, 20, 50, 100, 200]),
+            SolverKind::LbfgsTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::Chebyshev => iterations(&[5, 10, 20, 50, 100]),
+            SolverKind::NewtonCg => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonCgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }
