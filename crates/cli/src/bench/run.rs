@@ -274,7 +274,9 @@ impl Runner {
                 pd.params.tolerance = tolerance;
                 x.copy_from_slice(&problem.y);
                 let start = Instant::now();
-                let report = pd.solve(springs, &problem.y, x);
+                let report = pd
+                    .solve(springs, &problem.y, x)
+                    .map_err(|e| e.to_string())?;
                 let wall = start.elapsed();
                 let note = (matches!(setting, Setting::Tolerance(_))
                     && report.stop != StopReason::Converged)
@@ -303,8 +305,13 @@ impl Runner {
                     .minimize(objective.as_mut(), unknowns)
                     .map_err(|e| e.to_string())?;
                 let note = match (setting, report.stop) {
+                    (_, StopReason::RoundOff) => Some(format!(
+                        "at the round-off floor, relative gradient {:.1e}",
+                        report.gradient()
+                    )),
                     (_, StopReason::Stagnated) => Some(format!(
-                        "stagnated at the round-off floor, relative gradient {:.1e}",
+                        "stagnated above the round-off floor (not converged), relative gradient \
+                         {:.1e}",
                         report.gradient()
                     )),
                     (Setting::Tolerance(_), StopReason::IterationLimit) => {
