@@ -37,7 +37,7 @@
 use hooke_assembly::FreeDofs;
 use hooke_solvers::{
     BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
-    SolveSummary, StopReason,
+    SolveSummary,
 };
 use nalgebra::SVector;
 
@@ -581,7 +581,11 @@ mod tests {
             .unwrap();
         let asked = asked.into_inner();
         assert!(summary.substeps > 1, "not halved: {summary:?}");
-        assert_eq!(summary.stop, StopReason::Converged, "{summary:?}");
+        assert_eq!(
+            summary.stop,
+            hooke_solvers::StopReason::Converged,
+            "{summary:?}"
+        );
         assert_eq!(
             asked[0],
             0.5 * h,
