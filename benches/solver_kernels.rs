@@ -238,7 +238,7 @@ fn scene(c: &mut Criterion, case: &Case) {
         let mut samples: [Vec<f64>; 6] = Default::default();
         for round in 0..=rounds {
             let iteration = time(&mut || {
-                black_box(pd.solve(springs, &case.y, &mut x));
+                black_box(pd.solve(springs, &case.y, &mut x).unwrap());
             });
             let local = time(&mut || local_step(springs, &case.x, &mut d, true));
             let right = time(&mut || {
@@ -285,7 +285,7 @@ fn scene(c: &mut Criterion, case: &Case) {
         );
     }
     group.bench_function(BenchmarkId::new("pd", "iteration"), |b| {
-        b.iter(|| pd.solve(springs, &case.y, &mut x))
+        b.iter(|| pd.solve(springs, &case.y, &mut x).unwrap())
     });
     group.bench_function(BenchmarkId::new("pd", "local_step"), |b| {
         b.iter(|| local_step(springs, black_box(&case.x), &mut d, true))

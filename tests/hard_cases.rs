@@ -26,7 +26,6 @@
 use std::time::Instant;
 
 use hooke::sim::{Scene, SimError, Simulation, State};
-use hooke::solvers::StopReason;
 use hooke_cli::bench::{energy_scale, hard_case, hard_case_settings, HARD_CASES, HARD_INTEGRATORS};
 
 const N: usize = 40;
@@ -104,10 +103,7 @@ fn run(case_name: &str, integrator: &str) -> Outcome {
             Err(error) => return Outcome::Stopped { frame, error },
             Ok(report) => {
                 pieces = pieces.max(report.substeps);
-                if report
-                    .solver
-                    .is_some_and(|s| s.stop == StopReason::IterationLimit)
-                {
+                if report.converged == Some(false) {
                     unconverged += 1;
                 }
             }

@@ -13,13 +13,12 @@ use crate::sim::scenes::{self, AnySetup, Setup};
 use crate::sim::{
     parse_energy_limit, Integrator, LinearSolver, PinMethod, SimError, Simulation, SolverOptions,
 };
-use crate::solvers::StopReason;
 use clap::{Parser, Subcommand, ValueEnum};
 use nalgebra::SVector;
 
 use output::{
     progress_bar, render_preview, write_summary, OutputError, PreviewInput, PreviewPositions,
-    RunSummary, SolverSettingsRecord, StepRecord,
+    ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -337,7 +336,15 @@ fn run_setup<const D: usize>(
             })
         },
         pin_method: Some(settings.pins.name().into()),
-        steps: Vec::with_capacity(steps + 1),
+        solver_residual: settings
+            .integrator
+            .solver_residual()
+            .map(|(quantity, unit)| ResidualRecord {
+                quantity: quantity.into(),
+                unit: unit.into(),
+            }),
+        // Reserved up to a fixed size: the frame count is the user's.
+        steps: Vec::with_capacity(steps.saturating_add(1).min(1 << 12)),
     };
     let record = |step: usize, sim: &Simulation<D>, report: Option<crate::sim::StepReport>| {
         let energy = sim.energy();
@@ -352,7 +359,8 @@ fn run_setup<const D: usize>(
             solver_residual: report.and_then(|r| r.solver).map(|s| s.residual),
             solver_stop: report
                 .and_then(|r| r.solver)
-                .map(|s| stop_name(s.stop).to_string()),
+                .map(|s| s.stop.name().to_string()),
+            solver_converged: report.and_then(|r| r.converged),
             clamped_hessian: report.is_some_and(|r| r.clamped_hessian),
             halved_into: report
                 .and_then(|r| r.solver)
@@ -392,12 +400,12 @@ fn run_setup<const D: usize>(
     let unconverged = summary
         .steps
         .iter()
-        .filter(|r| r.solver_stop.as_deref() == Some("iteration-limit"))
+        .filter(|r| r.solver_converged == Some(false))
         .count();
     if unconverged > 0 && settings.integrator != Integrator::ProjectiveDynamics {
         eprintln!(
-            "warning: the solver stopped at its iteration limit, short of its tolerance, in \
-             {unconverged} step(s) (see solver_stop in summary.json)"
+            "warning: the solver did not converge (stopped short of its tolerance) in \
+             {unconverged} step(s) (see solver_converged and solver_stop in summary.json)"
         );
     }
     let clamped = summary.steps.iter().filter(|r| r.clamped_hessian).count();
@@ -438,15 +446,6 @@ fn run_setup<const D: usize>(
         steps + 1
     );
     Ok(())
-}
-
-fn stop_name(stop: StopReason) -> &'static str {
-    match stop {
-        StopReason::Converged => "converged",
-        StopReason::IterationLimit => "iteration-limit",
-        StopReason::Stagnated => "stagnated",
-        _ => "other",
-    }
 }
 
 /// Remove frame files of an earlier run, so that the directory holds exactly this run's frames.

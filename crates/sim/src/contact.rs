@@ -372,13 +372,9 @@ impl<const D: usize> StepProjection<D> {
         );
         self.blocks
             .refill(self.pattern.diagonal_blocks(&self.values))
-            .map_err(|e| SimError::Solver {
-                message: format!("contact projection: {e}"),
-            })?;
+            .map_err(SimError::solver)?;
         for _ in 0..MAX_PROJECTION_ROUNDS {
-            self.solve().map_err(|e| SimError::Solver {
-                message: format!("contact projection: {e}"),
-            })?;
+            self.solve().map_err(SimError::solver)?;
             let joined = self.activate_penetrating(contacts);
             touched += joined;
             if joined == 0 {

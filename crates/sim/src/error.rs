@@ -1,6 +1,26 @@
 //! The simulation crate's error type.
 
 use hooke_mesh::MeshError;
+use hooke_solvers::{NewtonError, ParamError, PdError, SolveError};
+
+/// A solver's own error, typed, with the report it carries (Newton's, PD's or the contact
+/// projection's linear solve).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SolverFailure {
+    /// Backward Euler by Newton: the error carries Newton's report up to the failure
+    /// ([`NewtonError::report`]). A step is redone in halves before this is returned (see
+    /// [`crate::Integrator::Newton`]), so it is the failure of the smallest piece tried.
+    #[error("Newton: {0}")]
+    Newton(#[from] NewtonError),
+    /// Projective dynamics could not be set up (its global matrix did not factor) or run.
+    #[error("projective dynamics: {0}")]
+    ProjectiveDynamics(#[from] PdError),
+    /// The contact projection after an implicit step: its linear solve met NaN or a singular
+    /// block.
+    #[error("contact projection: {0}")]
+    ContactProjection(#[from] SolveError),
+}
 
 /// Everything that can stop a scene from being built or a step from being taken.
 #[derive(Debug, thiserror::Error)]
@@ -82,12 +102,20 @@ pub enum SimError {
         /// The scene term, why it is not supported, and what to use instead.
         what: String,
     },
-    /// The implicit solver failed (the message carries its report).
-    #[error("the solver failed: {message}")]
+    /// The implicit solver failed: its typed error, with its report.
+    #[error("step {step}: the solver failed: {source}")]
     Solver {
-        /// What the solver reported.
-        message: String,
+        /// The step (1-based) during which it happened; 0 while the simulation was being set
+        /// up ([`crate::Simulation::new`]).
+        step: usize,
+        /// The solver's error.
+        #[source]
+        source: SolverFailure,
     },
+    /// A solver's parameter struct is out of range ([`crate::Settings::validate`]): the field
+    /// (e.g. `NewtonParams::blend_factor`) and its allowed range.
+    #[error("invalid solver setting: {0}")]
+    SolverParameter(#[from] ParamError),
     /// The linear solve of a linearised implicit Euler step failed: the system is not positive
     /// definite, Jacobi diverged, or NaN appeared. (A solve that merely reaches its iteration limit is
     /// not an error: the step's report says [`hooke_solvers::StopReason::IterationLimit`].)
@@ -134,6 +162,24 @@ pub enum SimError {
 }
 
 impl SimError {
+    /// A solver failure during set-up (step 0), which [`crate::Simulation::step`] renumbers.
+    pub(crate) fn solver(source: impl Into<SolverFailure>) -> Self {
+        SimError::Solver {
+            step: 0,
+            source: source.into(),
+        }
+    }
+
+    /// This error with the step index set (for the errors that carry one and do not have it yet).
+    pub(crate) fn at_step(mut self, index: usize) -> Self {
+        if let SimError::Solver { step, .. } = &mut self {
+            if *step == 0 {
+                *step = index;
+            }
+        }
+        self
+    }
+
     pub(crate) fn invalid(
         name: impl Into<String>,
         value: impl ToString,

@@ -37,7 +37,7 @@
 use hooke_assembly::FreeDofs;
 use hooke_solvers::{
     BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
-    SolveSummary, StopReason,
+    SolveSummary,
 };
 use nalgebra::SVector;
 
@@ -63,6 +63,9 @@ pub(crate) struct BackwardEuler<const D: usize> {
     solver: Solver<D>,
     /// How pins are held (Newton builds its half-step integrator the same way).
     pins: PinMethod,
+    /// Newton only: whether the objective's per-spring loops run in parallel (the half-step
+    /// integrator inherits it).
+    parallel: bool,
     /// Effective masses A (kg, per vertex): see the module documentation.
     inertia: Vec<f64>,
     x_start: Vec<SVector<f64, D>>,
@@ -210,11 +213,13 @@ fn inertial_target<const D: usize>(
 }
 
 impl<const D: usize> BackwardEuler<D> {
-    /// Newton's method on Φ, pins held by `pins`.
+    /// Newton's method on Φ, pins held by `pins`, the objective's loops parallel if `parallel`
+    /// (the same bits either way).
     pub(crate) fn newton(
         scene: &Scene<D>,
         params: NewtonParams,
         pins: PinMethod,
+        parallel: bool,
     ) -> Result<Self, SimError> {
         check_supported(scene, "newton")?;
         let mesh = scene.mesh();
@@ -222,7 +227,7 @@ impl<const D: usize> BackwardEuler<D> {
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
         let inertia = effective_masses(scene);
-        let objective = match pins {
+        let mut objective = match pins {
             PinMethod::Reduction => {
                 BackwardEulerStep::new(mesh.springs(), &inertia, free, scene.time_step())
             }
@@ -233,9 +238,8 @@ impl<const D: usize> BackwardEuler<D> {
                 scene.time_step(),
             ),
         };
-        let newton = Newton::new(objective.pattern(), params).map_err(|e| SimError::Solver {
-            message: e.to_string(),
-        })?;
+        objective.set_parallel(parallel);
+        let newton = Newton::new(objective.pattern(), params).map_err(SimError::solver)?;
         let unknowns = vec![0.0; objective.dim()];
         Ok(BackwardEuler {
             solver: Solver::Newton {
@@ -244,6 +248,7 @@ impl<const D: usize> BackwardEuler<D> {
                 unknowns,
             },
             pins,
+            parallel,
             inertia,
             x_start: vec![SVector::zeros(); n],
             y: vec![SVector::zeros(); n],
@@ -289,12 +294,11 @@ impl<const D: usize> BackwardEuler<D> {
         let inertia = effective_masses(scene);
         let pd =
             ProjectiveDynamics::new(mesh.springs(), &inertia, &free, scene.time_step(), params)
-                .map_err(|e| SimError::Solver {
-                    message: e.to_string(),
-                })?;
+                .map_err(SimError::solver)?;
         Ok(BackwardEuler {
             solver: Solver::Projective { pd: Box::new(pd) },
             pins,
+            parallel: params.parallel,
             inertia,
             x_start: vec![SVector::zeros(); n],
             y: vec![SVector::zeros(); n],
@@ -353,8 +357,10 @@ impl<const D: usize> BackwardEuler<D> {
             self.saved_positions.copy_from_slice(positions);
             self.saved_velocities.copy_from_slice(velocities);
             let whole = self.step_once(scene, positions, velocities, next_pinned);
+            // Not converged (the iteration limit, or a stall above the rounding floor) or an error
+            // of the solver: redo the step in halves.
             let failed = match &whole {
-                Ok(summary) => summary.stop == StopReason::IterationLimit,
+                Ok(summary) => !summary.stop.is_converged(),
                 Err(SimError::Solver { .. }) => true,
                 Err(_) => false,
             };
@@ -377,7 +383,7 @@ impl<const D: usize> BackwardEuler<D> {
         };
         if self.half.is_none() {
             let half_scene = scene.clone().with_time_step(0.5 * scene.time_step())?;
-            let integrator = BackwardEuler::newton(&half_scene, params, self.pins)?;
+            let integrator = BackwardEuler::newton(&half_scene, params, self.pins, self.parallel)?;
             self.half = Some(Box::new(Half {
                 scene: half_scene,
                 integrator,
@@ -423,10 +429,11 @@ impl<const D: usize> BackwardEuler<D> {
         Ok(SolveSummary {
             iterations: given_up + first.iterations + second.iterations,
             residual: first.residual.max(second.residual),
-            stop: if first.stop == StopReason::IterationLimit {
-                first.stop
-            } else {
+            // The first piece that did not converge, if any, says why.
+            stop: if first.stop.is_converged() {
                 second.stop
+            } else {
+                first.stop
             },
             substeps: first.substeps + second.substeps,
         })
@@ -466,11 +473,9 @@ impl<const D: usize> BackwardEuler<D> {
                 }
                 objective.set_step(&self.y, positions, unknowns);
                 objective.set_dashpot(scene.damping().dashpot, &self.x_start);
-                let report = newton.minimize(objective.as_mut(), unknowns).map_err(|e| {
-                    SimError::Solver {
-                        message: e.to_string(),
-                    }
-                })?;
+                let report = newton
+                    .minimize(objective.as_mut(), unknowns)
+                    .map_err(SimError::solver)?;
                 positions.copy_from_slice(objective.positions(unknowns));
                 SolveSummary {
                     iterations: report.iterations,
@@ -485,7 +490,9 @@ impl<const D: usize> BackwardEuler<D> {
                 }
                 // x⁰ = y at free vertices; pinned vertices keep their positions (y = x there).
                 positions.copy_from_slice(&self.y);
-                let report = pd.solve(scene.mesh().springs(), &self.y, positions);
+                let report = pd
+                    .solve(scene.mesh().springs(), &self.y, positions)
+                    .map_err(SimError::solver)?;
                 SolveSummary {
                     iterations: report.iterations,
                     residual: report.changes.last().copied().unwrap_or(0.0),
@@ -502,10 +509,6 @@ impl<const D: usize> BackwardEuler<D> {
             }
             velocities[v] = (positions[v] - self.x_start[v]) / h * drag;
         }
-        debug_assert!(matches!(
-            summary.stop,
-            StopReason::Converged | StopReason::IterationLimit | StopReason::Stagnated
-        ));
         Ok(summary)
     }
 }
@@ -565,7 +568,8 @@ mod tests {
             max_iterations: 8,
             ..NewtonParams::default()
         };
-        let mut integrator = BackwardEuler::newton(&scene, params, Default::default()).unwrap();
+        let mut integrator =
+            BackwardEuler::newton(&scene, params, Default::default(), true).unwrap();
         let summary = integrator
             .step(
                 &scene,
@@ -577,7 +581,11 @@ mod tests {
             .unwrap();
         let asked = asked.into_inner();
         assert!(summary.substeps > 1, "not halved: {summary:?}");
-        assert_eq!(summary.stop, StopReason::Converged, "{summary:?}");
+        assert_eq!(
+            summary.stop,
+            hooke_solvers::StopReason::Converged,
+            "{summary:?}"
+        );
         assert_eq!(
             asked[0],
             0.5 * h,

@@ -58,6 +58,23 @@ impl Integrator {
         }
     }
 
+    /// What the residual in this integrator's [`hooke_solvers::SolveSummary::residual`] is, and
+    /// its unit: (quantity, unit), `None` for the explicit methods, which solve nothing.
+    /// - `newton`: the relative gradient ‖∇Φ(x)‖ / ‖∇Φ(x⁰)‖ (dimensionless; the largest over the
+    ///   pieces of a halved step);
+    /// - `pd`: the largest change of a position coordinate in the last iteration (m);
+    /// - `linearized`: the relative linear residual ‖b − A v‖ / ‖b‖ (dimensionless).
+    pub fn solver_residual(&self) -> Option<(&'static str, &'static str)> {
+        match self {
+            Integrator::Newton => Some(("relative gradient |grad Phi(x)| / |grad Phi(x0)|", "1")),
+            Integrator::ProjectiveDynamics => {
+                Some(("largest position change in the last iteration", "m"))
+            }
+            Integrator::Linearized => Some(("relative linear residual |b - A v| / |b|", "1")),
+            Integrator::ExplicitEuler | Integrator::SymplecticEuler => None,
+        }
+    }
+
     /// True for the explicit methods, which have a step-size limit and take substeps.
     pub fn is_explicit(&self) -> bool {
         matches!(
@@ -308,7 +325,9 @@ pub struct Settings {
     /// Let an explicit method run with a step above its estimated stability bound (it will likely
     /// blow up, and then stop with [`crate::SimError::NonFinite`]).
     pub allow_unstable: bool,
-    /// Use rayon for the per-spring and per-vertex loops (results are identical either way).
+    /// Use rayon for the per-spring and per-vertex loops, in every integrator (results are
+    /// identical either way). It overrides [`hooke_solvers::PdParams::parallel`] and sets
+    /// Newton's objective's loops ([`hooke_solvers::BackwardEulerStep::set_parallel`]).
     pub parallel: bool,
     /// Energy watchdog (dimensionless factor; default 1): stop with
     /// [`SimError::EnergyGrowth`] when the total energy exceeds E₀ + `energy_limit` · (|E₀| + E_g),
@@ -401,6 +420,27 @@ pub struct SolverOptions {
 }
 
 impl Settings {
+    /// Check every setting, whichever integrator is chosen (a scene file or a caller may switch
+    /// integrators later): `substeps` at least 1 if given; `energy_limit` finite and ≥ 0 if on;
+    /// [`LinearizedParams::validate`], [`hooke_solvers::NewtonParams::validate`] and
+    /// [`hooke_solvers::PdParams::validate`]. [`crate::Simulation::new`] calls it.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for the simulation's own settings,
+    /// [`SimError::SolverParameter`] (naming the solver's field and its range) for the solvers'.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if self.substeps == Some(0) {
+            return Err(SimError::invalid("substeps", 0, "must be at least 1"));
+        }
+        if let Some(factor) = self.energy_limit {
+            check_energy_limit(factor)?;
+        }
+        self.linearized.validate()?;
+        self.newton.validate()?;
+        self.pd.validate()?;
+        Ok(())
+    }
+
     /// Apply `options` to the solver of `self.integrator` (set the integrator first).
     ///
     /// # Errors

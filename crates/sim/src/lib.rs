@@ -39,7 +39,7 @@ pub mod stability;
 
 pub use contact::{Contact, Shape};
 pub use damping::Damping;
-pub use error::SimError;
+pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;
 pub use integrator::{
     parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, Settings,

@@ -32,6 +32,11 @@ pub struct StepReport {
     pub substeps: usize,
     /// The solver's summary, for integrators that solve a system.
     pub solver: Option<SolveSummary>,
+    /// Whether the solver converged this frame ([`hooke_solvers::StopReason::is_converged`]: the
+    /// tolerance, or the proven rounding floor, was reached in every piece of the step); `None`
+    /// for the explicit integrators, which solve nothing. Projective dynamics with its default
+    /// tolerance 0 runs a fixed budget and reports `Some(false)`.
+    pub converged: Option<bool>,
     /// Wall time of the step.
     pub wall_time: Duration,
     /// The linearised integrator found the exact Hessian's system not positive definite and solved
@@ -66,17 +71,26 @@ pub struct Simulation<const D: usize> {
     energy_limit: Option<(f64, f64)>,
     /// Contact after an implicit step (scenes with contacts and an implicit integrator).
     projection: Option<StepProjection<D>>,
+    /// The state at the start of the current step, restored if the step fails.
+    before: State<D>,
 }
 
 impl<const D: usize> Simulation<D> {
     /// Start simulating `scene` from `state` with `settings`.
     ///
     /// # Errors
-    /// - [`SimError::InvalidParameter`] if `state` does not match the mesh, holds non-finite
-    ///   values, substeps are 0 or too many, or the energy limit is negative or not finite;
+    /// - [`SimError::InvalidParameter`] or [`SimError::SolverParameter`] if `settings` does not
+    ///   pass [`Settings::validate`], `state` does not match the mesh or holds non-finite values,
+    ///   or an explicit method would need too many substeps;
+    /// - [`SimError::Solver`] (step 0) if the solver cannot be set up (projective dynamics'
+    ///   matrix does not factor);
     /// - [`SimError::UnstableStep`] if an explicit step is above the estimated stability bound and
     ///   `settings.allow_unstable` is false.
     pub fn new(scene: Scene<D>, state: State<D>, settings: Settings) -> Result<Self, SimError> {
+        settings.validate()?;
+        // Settings::parallel governs every integrator (PD's own flag included).
+        let mut settings = settings;
+        settings.pd.parallel = settings.parallel;
         let n = scene.mesh().vertex_count();
         for (what, len) in [
             ("positions", state.positions.len()),
@@ -133,6 +147,7 @@ impl<const D: usize> Simulation<D> {
                 &scene,
                 settings.newton,
                 settings.pins,
+                settings.parallel,
             )?),
             Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(
                 &scene,
@@ -192,6 +207,7 @@ impl<const D: usize> Simulation<D> {
             _ => None,
         };
         Ok(Simulation {
+            before: state.clone(),
             force: vec![SVector::zeros(); n],
             spring_forces,
             scene,
@@ -266,14 +282,39 @@ impl<const D: usize> Simulation<D> {
 
     /// Advance one frame of the scene's time step.
     ///
+    /// After a failed step the simulation is as it was before that step: the same state (positions,
+    /// velocities, time) and the same [`Simulation::steps_taken`], so the caller can inspect it,
+    /// change the settings of a new simulation from it, or write it out. A step that finishes
+    /// without converging is not a failure: its report says so ([`StepReport::converged`]).
+    ///
     /// # Errors
     /// - [`SimError::NonFinite`] if the state became NaN or infinite, [`SimError::Diverged`] if it
     ///   ran far outside the scene, [`SimError::EnergyGrowth`] if the energy of a scene without
     ///   energy sources rose past [`Settings::energy_limit`]'s bound (the simulation is unstable);
-    ///   the state is then left as it was at the failure;
     /// - [`SimError::LinearSolve`] if the linearised integrator's linear solve failed, and
-    ///   [`SimError::Solver`] if Newton failed (the state is then unspecified).
+    ///   [`SimError::Solver`] (with the step index and the solver's typed error and report) if
+    ///   Newton, projective dynamics or the contact projection failed.
     pub fn step(&mut self) -> Result<StepReport, SimError> {
+        self.before.positions.copy_from_slice(&self.state.positions);
+        self.before
+            .velocities
+            .copy_from_slice(&self.state.velocities);
+        self.before.time = self.state.time;
+        let steps_before = self.steps_taken;
+        let result = self.try_step();
+        if result.is_err() {
+            self.state.positions.copy_from_slice(&self.before.positions);
+            self.state
+                .velocities
+                .copy_from_slice(&self.before.velocities);
+            self.state.time = self.before.time;
+            self.steps_taken = steps_before;
+        }
+        result.map_err(|e| e.at_step(steps_before + 1))
+    }
+
+    /// [`Simulation::step`] without the restore on failure.
+    fn try_step(&mut self) -> Result<StepReport, SimError> {
         let start = Instant::now();
         let mut solver = None;
         let mut clamped_hessian = false;
@@ -351,6 +392,7 @@ impl<const D: usize> Simulation<D> {
             // Backward Euler by Newton may halve a step it cannot finish (see `implicit`).
             substeps: solver.map_or(self.substeps, |s| s.substeps),
             solver,
+            converged: solver.map(|s| s.stop.is_converged()),
             wall_time: start.elapsed(),
             clamped_hessian,
         })

@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use crate::operator::{dot, LinearOperator, Preconditioner};
+use crate::params::{self, ParamError};
 use crate::report::{Report, SolveError, StopReason};
 
 /// Settings of [`ConjugateGradient`].
@@ -12,6 +13,22 @@ pub struct CgParams {
     pub tolerance: f64,
     /// Stop after this many iterations (reported as [`StopReason::IterationLimit`]). Default 1000.
     pub max_iterations: usize,
+}
+
+impl CgParams {
+    /// Check the fields: `tolerance` finite and ≥ 0 (relative), `max_iterations` ≥ 1.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::non_negative("CgParams::tolerance", self.tolerance)?;
+        params::at_least(
+            "CgParams::max_iterations",
+            self.max_iterations,
+            1,
+            "at least 1",
+        )
+    }
 }
 
 impl Default for CgParams {
@@ -48,6 +65,8 @@ impl ConjugateGradient {
     /// The residuals in the report are ‖b − A x‖ / ‖b‖ (or ‖b − A x‖ when b = 0).
     ///
     /// # Errors
+    /// - [`SolveError::InvalidParameter`] (before anything is computed) if [`ConjugateGradient::params`]
+    ///   does not pass [`CgParams::validate`];
     /// - [`SolveError::NotPositiveDefinite`] when a search direction has pᵀAp ≤ 0;
     /// - [`SolveError::NonFinite`] when NaN or infinity appears.
     ///
@@ -64,6 +83,7 @@ impl ConjugateGradient {
         let n = a.dim();
         assert_eq!(b.len(), n, "right-hand side length");
         assert_eq!(x.len(), n, "solution length");
+        self.params.validate()?;
         let start = Instant::now();
         for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.ap] {
             v.resize(n, 0.0);
@@ -89,7 +109,7 @@ impl ConjugateGradient {
         loop {
             if !residual.is_finite() {
                 return Err(SolveError::NonFinite {
-                    report: finish(report, StopReason::IterationLimit),
+                    report: finish(report, StopReason::NonFinite),
                 });
             }
             if residual <= self.params.tolerance {
@@ -101,11 +121,15 @@ impl ConjugateGradient {
             a.apply(&self.p, &mut self.ap);
             let curvature = dot(&self.p, &self.ap);
             if curvature.is_nan() || curvature <= 0.0 {
-                let report = finish(report, StopReason::IterationLimit);
                 return Err(if curvature.is_nan() {
-                    SolveError::NonFinite { report }
+                    SolveError::NonFinite {
+                        report: finish(report, StopReason::NonFinite),
+                    }
                 } else {
-                    SolveError::NotPositiveDefinite { curvature, report }
+                    SolveError::NotPositiveDefinite {
+                        curvature,
+                        report: finish(report, StopReason::IterationLimit),
+                    }
                 });
             }
             let alpha = rz / curvature;

@@ -25,6 +25,8 @@ use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
+use crate::params::{self, ParamError, MAX_THREADS};
+
 /// How the factor is organised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum FactorKind {
@@ -57,6 +59,22 @@ impl Default for CholeskyParams {
             factor_threads: 1,
             solve_threads: 1,
         }
+    }
+}
+
+impl CholeskyParams {
+    /// Check the thread counts: each in 1..=[`MAX_THREADS`].
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        for (field, threads) in [
+            ("CholeskyParams::factor_threads", self.factor_threads),
+            ("CholeskyParams::solve_threads", self.solve_threads),
+        ] {
+            params::count_in(field, threads, 1, MAX_THREADS, "in 1..=1024")?;
+        }
+        Ok(())
     }
 }
 
@@ -107,6 +125,9 @@ pub enum CholeskyError {
     /// faer could not complete the symbolic analysis (e.g. out of memory, or an index overflow).
     #[error("symbolic analysis failed: {0}")]
     Symbolic(String),
+    /// A parameter is out of its range ([`CholeskyParams::validate`]).
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
 }
 
 /// The inertia of a symmetric matrix, read off the pivots of its LDLᵀ factorisation.
@@ -167,6 +188,7 @@ impl SparseCholesky {
     /// new set of values.
     ///
     /// # Errors
+    /// [`CholeskyError::InvalidParameter`] if `params` does not pass [`CholeskyParams::validate`];
     /// [`CholeskyError::Symbolic`] if faer's analysis fails.
     ///
     /// # Panics
@@ -181,6 +203,7 @@ impl SparseCholesky {
             pattern.ncols(),
             "a Cholesky factorisation needs a square matrix"
         );
+        params.validate()?;
         let start = Instant::now();
         let threshold = match params.kind {
             FactorKind::Auto => SupernodalThreshold::AUTO,
@@ -204,6 +227,7 @@ impl SparseCholesky {
     /// made for `pattern`, which every matrix factored later must have.
     ///
     /// # Errors
+    /// [`CholeskyError::InvalidParameter`] if `params` does not pass [`CholeskyParams::validate`];
     /// [`CholeskyError::Symbolic`] if the scratch memory cannot be sized.
     ///
     /// # Panics
@@ -215,6 +239,7 @@ impl SparseCholesky {
         params: CholeskyParams,
         analysis_time: Duration,
     ) -> Result<Self, CholeskyError> {
+        params.validate()?;
         let n = symbolic.nrows();
         assert!(
             pattern.nrows() == n && pattern.ncols() == n,

@@ -7,6 +7,7 @@
 use std::time::Instant;
 
 use crate::operator::{dot, BlockJacobi, LinearOperator};
+use crate::params::{self, ParamError};
 use crate::report::{Report, SolveError, StopReason};
 
 /// Settings of [`Jacobi`].
@@ -19,8 +20,38 @@ pub struct JacobiParams {
     /// Relaxation weight ω in (0, 1]: 1 is plain Jacobi, smaller damps it (weighted Jacobi, which
     /// converges for SPD systems when ω < 2 / λ_max(D⁻¹A)). Default 1.
     pub weight: f64,
-    /// Report divergence once the residual exceeds this factor times the initial one. Default 1e3.
+    /// Report divergence once the residual exceeds this factor times the initial one, > 1
+    /// (+∞: never). Default 1e3.
     pub divergence_factor: f64,
+}
+
+impl JacobiParams {
+    /// Check the fields: `tolerance` finite and ≥ 0 (relative), `max_iterations` ≥ 1, `weight`
+    /// in (0, 1], `divergence_factor` > 1 (+∞ turns the divergence check off).
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::non_negative("JacobiParams::tolerance", self.tolerance)?;
+        params::at_least(
+            "JacobiParams::max_iterations",
+            self.max_iterations,
+            1,
+            "at least 1",
+        )?;
+        params::real(
+            "JacobiParams::weight",
+            self.weight,
+            self.weight > 0.0 && self.weight <= 1.0,
+            "in (0, 1]",
+        )?;
+        params::real(
+            "JacobiParams::divergence_factor",
+            self.divergence_factor,
+            self.divergence_factor > 1.0,
+            "> 1 (infinity: never report divergence)",
+        )
+    }
 }
 
 impl Default for JacobiParams {
@@ -56,6 +87,8 @@ impl Jacobi {
     /// Residuals in the report are ‖b − A x‖ / ‖b‖ (or ‖b − A x‖ when b = 0).
     ///
     /// # Errors
+    /// [`SolveError::InvalidParameter`] (before anything is computed) if [`Jacobi::params`] does
+    /// not pass [`JacobiParams::validate`];
     /// [`SolveError::Diverged`] when the residual grows past `divergence_factor` × its start;
     /// [`SolveError::NonFinite`] when NaN or infinity appears.
     ///
@@ -73,6 +106,7 @@ impl Jacobi {
         assert_eq!(b.len(), n, "right-hand side length");
         assert_eq!(x.len(), n, "solution length");
         assert_eq!(diagonal.dim(), n, "diagonal blocks cover the operator");
+        self.params.validate()?;
         let start = Instant::now();
         self.r.resize(n, 0.0);
         self.z.resize(n, 0.0);
@@ -97,7 +131,7 @@ impl Jacobi {
             }
             if !residual.is_finite() {
                 return Err(SolveError::NonFinite {
-                    report: finish(report, StopReason::IterationLimit),
+                    report: finish(report, StopReason::NonFinite),
                 });
             }
             if residual <= self.params.tolerance {

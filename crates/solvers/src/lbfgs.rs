@@ -18,7 +18,7 @@
 //!
 //! It stops when ‖∇Φ(x)‖ ≤ tolerance · ‖∇Φ(x⁰)‖ (the criterion of [`Newton`](crate::Newton)), at the
 //! iteration limit, or when no step along a descent direction lowers Φ while the gradient is within
-//! its rounding error ([`StopReason::Stagnated`]); a failed search with a larger gradient first
+//! its rounding error ([`StopReason::RoundOff`], converged as far as the arithmetic resolves); a failed search with a larger gradient first
 //! retries along −H₀ g with the history cleared, and is an error if that fails too.
 
 use std::time::{Duration, Instant};
@@ -265,7 +265,7 @@ impl Lbfgs {
         loop {
             let gradient = report.gradient();
             if !(report.initial_objective.is_finite() && gradient.is_finite()) {
-                finish(&mut report, StopReason::IterationLimit);
+                finish(&mut report, StopReason::NonFinite);
                 return Err(LbfgsError::NonFinite { report });
             }
             if g0 == 0.0 || gradient <= p.tolerance {
@@ -294,7 +294,7 @@ impl Lbfgs {
             let Some((alpha, change)) = accepted else {
                 let noise = problem.gradient_round_off(x);
                 if norm(&self.g) <= noise {
-                    finish(&mut report, StopReason::Stagnated);
+                    finish(&mut report, StopReason::RoundOff);
                     return Ok(report);
                 }
                 finish(&mut report, StopReason::IterationLimit);

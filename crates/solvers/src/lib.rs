@@ -1,14 +1,21 @@
 //! # hooke-solvers
 //!
-//! Linear and nonlinear solvers for hooke's implicit integrators. Every solver takes a
-//! `Copy + Default` parameter struct and returns `Result<Report, SolveError>`: the report holds the
-//! iterations, the residual history, the wall time and why it stopped; every error carries the report
-//! up to the failure. Workspaces live in the solver objects and are reused across solves, so the
-//! iterations do not allocate.
+//! Linear and nonlinear solvers for hooke's implicit integrators:
+//! - the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned [`ConjugateGradient`]
+//!   and block [`Jacobi`], which return `Result<`[`Report`]`, `[`SolveError`]`>`;
+//! - [`SparseCholesky`] (faer, symbolic analysis reused), `Result<_, `[`CholeskyError`]`>`;
+//! - [`Newton`] on a [`NewtonProblem`] (LDLᵀ with inertia, an indefinite-Hessian policy, a line
+//!   search and a nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's problem), which
+//!   returns `Result<`[`NewtonReport`]`, `[`NewtonError`]`>`;
+//! - [`ProjectiveDynamics`] for a backward Euler step, `Result<`[`PdReport`]`, `[`PdError`]`>`.
 //!
-//! Done so far: the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned
-//! [`ConjugateGradient`], block [`Jacobi`], and [`SparseCholesky`] (faer, symbolic analysis reused).
-//! [`Newton`] with an adaptive Hessian shift and a line search, and [`ProjectiveDynamics`].
+//! Every solver takes a `Copy + Default` parameter struct with a `validate()` that names the
+//! first field out of its range ([`ParamError`]); the solver calls it where the struct enters (its
+//! constructor, and at the start of each solve, since the settings are public fields). Every report
+//! says why the solve stopped ([`StopReason`]; only [`StopReason::is_converged`] stops found the
+//! solution asked for), and every error after the first iteration carries the report up to the
+//! failure. Workspaces live in the solver objects and are reused across solves, so the iterations
+//! do not allocate; reports reserve a fixed number of records, never the iteration limit.
 //!
 //! ```
 //! use hooke_solvers::{CgParams, ConjugateGradient, Identity, StopReason};
@@ -37,6 +44,7 @@ pub mod lbfgs;
 pub mod newton;
 pub mod newton_cg;
 pub mod operator;
+mod params;
 pub mod projective;
 mod report;
 
@@ -53,12 +61,14 @@ pub use lbfgs::{
 };
 pub use newton::{
     IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
-    NewtonReport, Relaxation, RelaxationWork,
+    NewtonReport, Relaxation, RelaxationWork, MAX_LINE_SEARCH_HALVINGS, MAX_PATCH_COVERS,
+    MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
 };
 pub use newton_cg::{
     NewtonCg, NewtonCgError, NewtonCgParamError, NewtonCgParams, NewtonCgReport,
     NEWTON_CG_MAX_ITERATIONS,
 };
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
-pub use projective::{PdParams, PdReport, ProjectiveDynamics};
+pub use params::{ParamError, MAX_THREADS};
+pub use projective::{PdError, PdParams, PdReport, ProjectiveDynamics};
 pub use report::{Report, SolveError, SolveSummary, StopReason};

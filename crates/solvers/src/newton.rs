@@ -1,184 +1,49 @@
 //! Newton's method for minimising a smooth objective Φ whose Hessian has a fixed sparsity pattern
 //! (backward Euler: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x), seed 003).
 //!
-//! The exact Hessian H of a spring mesh is indefinite where springs are compressed, so the Newton
-//! matrix is factored as LDLᵀ (faer, symbolic analysis reused), which also gives its inertia. What
-//! happens when it is indefinite is the [`IndefinitePolicy`]:
-//! - [`IndefinitePolicy::ConvexBlend`] (the default): factor (1 − β) H + β H₊, where H₊ is the
-//!   problem's convexified Hessian (for backward Euler the clamped one: each compressed spring's
-//!   negative transverse stiffness set to zero, so H₊ ≥ M). The blend damps only the non-convex
-//!   terms, where a shift H + μM damps every direction alike. β starts at 0 in every solve, moves
-//!   on a ladder of threefold steps from 1e-4: up to the smallest positive definite blend (found by
-//!   a search that tries the next step, then β = 1, then bisects, since definiteness only grows
-//!   with β: the same β as climbing step by step, in fewer factorisations: 28 instead of 31 on
-//!   cloth-160's step, 14 instead of 17 on cloth-40's), and one step down after a full step, so
-//!   the last iterations are exact Newton steps;
-//! - [`IndefinitePolicy::NewtonIfDescent`]: take the indefinite matrix's Newton step −H⁻¹g when it
-//!   descends (the iterate then converges to a stationary point of Φ, which solves the backward Euler
-//!   equations M(x − y) = h² f(x) as a minimiser does), and shift otherwise;
-//! - [`IndefinitePolicy::Shift`]: the Levenberg–Marquardt-like shift H + μD (D a positive diagonal,
-//!   the masses), μ raised tenfold until the matrix is positive definite, lowered after full steps.
-//!
-//! Every blended or shifted step and every failed attempt is counted in the [`NewtonReport`].
+//! Each iteration factors the Newton matrix as LDLᵀ (faer, symbolic analysis done once in
+//! [`Newton::new`]), which gives its inertia, and takes a backtracking (Armijo) line search along
+//! −H⁻¹∇Φ. The exact Hessian of a spring mesh is indefinite where springs are compressed; what
+//! happens then is the [`IndefinitePolicy`]:
+//! - [`IndefinitePolicy::ConvexBlend`] (the default): factor (1 − β) H + β H₊, H₊ the problem's
+//!   convexified Hessian (for backward Euler the clamped one, H₊ ≥ M), which damps only the
+//!   non-convex terms. β starts at 0 in every solve; after an indefinite factorisation the smallest
+//!   definite weight on the ladder 1e-4 · 3ᵏ ([`NewtonParams::initial_shift`],
+//!   [`NewtonParams::blend_factor`]) is found by trying the next step, then β = 1, then bisecting
+//!   (definiteness only grows with β); a full step lowers β one step, a step shorter than ¼
+//!   raises it one, so the last iterations are exact Newton steps;
+//! - [`IndefinitePolicy::NewtonIfDescent`]: take the indefinite matrix's step when it descends,
+//!   shift otherwise (converges to a stationary point of Φ);
+//! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite.
 //!
 //! After every accepted step the problem may relax the iterate ([`NewtonProblem::relax`],
-//! [`Relaxation`]): for backward Euler, 10 Gauss–Seidel sweeps in which each free vertex takes up to
-//! 3 line-searched Newton steps on Φ with the others held, which never raises Φ, then up to 50
-//! focused sweeps over the 1/256 of the vertices with the largest gradients and two rings of their
-//! neighbours, then a nonlinear elimination ([`Relaxation::region_share`]): where the 1/64 of the
-//! vertices with the largest gradients carry at least half of ‖∇Φ‖²
-//! ([`Relaxation::region_concentration`]: a fold, not error spread over the sheet), the patches
-//! of two fixed, staggered covers that hold them (cells of 1/32 of the vertices with three rings
-//! of neighbours) are solved in turn by an inner Newton to 1e-6 of their gradient, everything
-//! else held; all of it
-//! skipped after an exact Newton step taken in full whose decrease of Φ matches its
-//! quadratic model within 2 % ([`Relaxation::trusted_model`]), where Newton needs no help (a solid
-//! that does not buckle never relaxes). This is what makes buckling cloth converge fast. The quadratic model of Φ holds only
-//! within a tiny distance of each iterate there: a displacement δ turns a spring's block by about
-//! h²kδ/l, which must stay below the smallest eigenvalue, about m, so δ ≲ m l/(h²k): 2.2e-7 m on
-//! cloth-160, 1.4e-5 m on cloth-40, shrinking as N⁻³ (the minimiser itself is well conditioned: the
-//! smallest generalised eigenvalue of H at cloth-160's solution is 1.02 M). Newton steps are good at
-//! the smooth, global part of the error and poor at the local buckling of single vertices and
-//! wrinkles, which the relaxation handles directly. Where a step stalls, the gradient sits in a fold:
-//! on cloth-160's speed-vs-error step 100 of the 25,600 vertices carry 40–95 % of ‖∇Φ‖² in most
-//! iterations, which is what the focused sweeps are for. The relaxation is serial and costs about
-//! half a factorisation per iteration on cloth-160 (7–9 s of a 20–26 s solve) and, in proportion,
-//! more on small meshes (about 60 % of a cloth-40 step).
+//! [`Relaxation`], on by default): for backward Euler, Gauss–Seidel sweeps of per-vertex Newton
+//! steps, focused sweeps over the hottest vertices, and a nonlinear elimination that solves the
+//! patches of a fixed cover holding a fold; skipped after an exact full step whose decrease of Φ
+//! its quadratic model predicted within 2 % ([`Relaxation::trusted_model`]). This is what makes
+//! buckling cloth converge in few iterations; the measurements behind every default, and the
+//! variants tried and not kept, are in `benches/results/newton-history.md`.
 //!
-//! The elimination is what brought cloth-160's speed-vs-error step within issue 4's bound of 25
-//! iterations on every state measured. A fold is a collective mode of hundreds of vertices: a
-//! vertex sweep moves it only as fast as information crosses the fold, and the focused sweeps'
-//! 100 vertices and two rings are too few to hold it.
+//! The line search compares Φ(x + αΔ) − Φ(x) computed by [`NewtonProblem::objective_change`],
+//! which problems implement without the cancellation of subtracting two values of Φ.
 //!
-//! Its patches are fixed so that it allocates nothing: each patch's problem and symbolic
-//! factorisation are built once per problem ([`NewtonProblem::prepare_relaxation`]). The cells are
-//! graph Voronoi cells of farthest-point seeds, in two covers, the second seeded at the corners of
-//! the first's cells ([`Relaxation::patch_covers`]). The patches are chosen greedily: the one whose
-//! cell holds the most of the selected vertices' heat that no solved patch holds first, until the
-//! solved cells' heat counted at each choice reaches 70 % of it
-//! ([`Relaxation::region_coverage`]); a fold at the corner of one cover's cells so lies in the
-//! middle of a cell of the other. An earlier version solved the
-//! hottest 1/64 and three rings of their neighbours as one region, whose pattern, and so whose
-//! problem and symbolic analysis, changed in every iteration; the table compares the two.
-//! Measured with `newton_probe` (release, every step to 1e-10; one job at a time; the columns of
-//! a row within the same hour, on a VM whose speed varied by about 20 % over the day):
+//! # Stops
+//! A solve is converged ([`StopReason::is_converged`]) only if ‖∇Φ‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖
+//! ([`StopReason::Converged`]) or the gradient is at its proven rounding floor,
+//! ‖∇Φ‖ ≤ [`NewtonProblem::gradient_round_off`] ([`StopReason::RoundOff`]: the tolerance asked for
+//! is below what the arithmetic resolves). A shortened step that lowers Φ by no more than its
+//! round-off while the gradient is above that floor ends the solve as [`StopReason::Stagnated`],
+//! not converged; the iteration limit as [`StopReason::IterationLimit`]; a non-finite Φ or
+//! gradient as [`NewtonError::NonFinite`] with [`StopReason::NonFinite`] in its report.
 //!
-//! | | default (two covers of fixed patches) | the region of the hottest vertices | without the elimination (`region_share: 0.0`) |
-//! |---|---|---|---|
-//! | cloth-160, speed-vs-error step from state D (below) | 13 iterations (12 to 1e-8), 20 factorisations + 150 in 24 patches, 21.7 s | 14 (13), 26.5 s | 31 (30), 53, 34.7 s (an earlier day) |
-//! | the same from state E, made by the region version before `region_concentration` | 12 (11), 20 + 192 in 28 patches, 23.6 s | 13 (12), 18.9 s (an earlier day) | — |
-//! | the same from the state the region version makes in `newton_probe` | 12 (11), 19 + 194 in 29 patches, 27.2 s | 13 (13), 25.2 s | — |
-//! | cloth-160, steps 1–8 from rest | 93 iterations (7, 10, 12, 16, 10, 10, 14, 14), 121 s | 103 (7, 12, 13, 22, 11, 13, 13, 12), 176 s | 146 (8, 24, 21, 33, 10, 11, 20, 19) |
-//! | cloth-40 crushed to 1 % (SCENES.md), its first step | 108 iterations, 7.9 s | 159, 14.7 s | — |
-//! | cloth-40 stiff (k = 1e5 N/m) at h = 1/5 s, steps 1–4 | 34, 44, 35, 19 iterations, 5.5 s | 42, 45, 28, 19 iterations, 7.1 s (an earlier day) | 40, 45, 33, 19, 4.7 s |
+//! # Parameters
+//! [`NewtonParams::validate`] checks every field (and the nested [`Relaxation`] and
+//! [`CholeskyParams`]); [`Newton::new`] and [`Newton::minimize`] refuse invalid settings with
+//! [`NewtonError::InvalidParameter`]. The report's history grows as iterations go (it reserves a
+//! fixed number of records, not the iteration limit).
 //!
-//! The covers' settings were chosen on the three cloth-160 states (iterations to 1e-10 on D, E and
-//! the probe's own state, and the wall time summed over the three), with one cover and the
-//! patches chosen by the heat in the whole patch at 90 % coverage: cells of 1/8 (solved in order
-//! of their cells' heat) 11 on D but 36 s; 1/16: 14, 15, 12, 91 s; 1/32: 12, 13, 14, 60 s; 1/64:
-//! 15, 11, 14, 61 s (the region version: 14, 13, 13, 60 s, two of them from the day before). With 1/16 cells,
-//! solving to 60 % coverage and to 1e-3 gave 17, 15, 14 in 76 s, and 3 inner sweeps instead of 10
-//! gave 14, 15, 14 in 77 s; one ring of overlap instead of three (1/8 cells) took 16 iterations
-//! on D. One cover at 1/32 took 273 iterations on the crushed cloth's first step, and halved a
-//! frame of the crushed hard case into 11 pieces (74 s). Two covers were measured an hour later,
-//! on a machine about 20 % slower (the one-cover version then took 22.6 s on D and 23.9 s on the
-//! probe's state): at 90 % coverage 12, 12, 13, 80 s, and 132 on the crushed step; at 70 % (the
-//! default) 13, 12, 12, 72 s, and 108.
-//!
-//! Without `region_concentration` (every elimination done), the region version's stiff cloth
-//! steps took 38, 39, 22 and 18 iterations but 17.1 s: its error is spread over the sheet (the
-//! hottest 1/64 carry 11–57 % of ‖∇Φ‖², against 55–98 % on cloth-160's buckling step), and
-//! solving a quarter of the sheet 30 times per step cost 4× the rest of the solve.
-//!
-//! The relaxation with its patch solves costs about as much as the outer factorisations (on
-//! cloth-160's step from D 10.3 s relaxing, sweeps included, against 9.5 s factoring). A buckling
-//! step has several solutions, and the path decides which one Newton finds: from D, Φ* =
-//! 2.8597989e-4 kg·m² with the region version against 2.8597908e-4 without the elimination.
-//!
-//! Tried with the region version and not kept: trying the exact Hessian first after a blended step
-//! taken in full whose decrease of Φ the exact Hessian's model gᵀΔ + ½ΔᵀHΔ predicted within
-//! 10 % (13 to 1e-8 on D, unchanged; 10 instead of 12 on E); the elimination without the vertex
-//! sweeps (17 on D); a region of the focused sweeps' size, 1/256 and two rings, solved to 1e-3
-//! or 1e-8 (26 and 29 on D); the inner solves without a relaxation of their own (13 on D, 11 on
-//! E, 18.9 s against 22.1 s on D, but 27 instead of 20 on the hardest step from rest, the 4th).
-//!
-//! The tables below are from before the elimination (its settings otherwise the default's).
-//!
-//! Measured with `newton_probe` (release; cloth-N of SCENES.md, each step to a relative gradient of
-//! 1e-10; "to 1e-8" is the requirement of issue 4). Three cloth-160 states saved by earlier probe
-//! runs (`HOOKE_STATE`): A and C made by earlier Newton versions, B by the default without focused
-//! sweeps, D by that default (the same as `hooke bench cloth-160`'s then).
-//!
-//! | | default | always relaxing (`trusted_model: 0.0`) | no focused sweeps either | NewtonIfDescent, no relaxation |
-//! |---|---|---|---|---|
-//! | cloth-160, speed-vs-error step from state A | 16 iterations (15 to 1e-8), 26 factorisations, 25.4 s (a) | 16 (15), 23, 19.7 s | 19 (18), 28, 24.8 s | 100 (97), 127, 93.4 s |
-//! | the same from state B | 23 (22), 42, 34.3 s (a) | 20 (19), 35, 26.2 s | 28 (27), 49, 37.9 s | — |
-//! | the same from state C | 18 (17), 27, 24.1 s (a) | 19 (18), 29, 22.3 s | 27 (26), 40, 34.4 s | — |
-//! | the same from state D (the bench's) | 31 (30), 53, 41.6 s (a) | 29 (28), 51, 37.2 s (a) | — | — |
-//! | cloth-160, steps 1–8 from rest | 146 iterations (8, 24, 21, 33, 10, 11, 20, 19) | 232 iterations (8, 23, 28, 86, 11, 25, 34, 17) | 334 (9, 19, 28, 155, 12, 11, 72, 28) | 343 (13, 10, 24, 19, 198, 21, 16, 42) |
-//! | cloth-40, speed-vs-error step | 7 (6), 7 factorisations, 0.13 s | 8 (7), 14, 0.37 s | 8 (7), 14, 0.41 s | 7 (7), 7, 0.12 s |
-//! | cloth-40, steps 1–12 from rest | 73 iterations, 2.5 s | 70, 3.5 s | 71 | 86 |
-//! | cloth-80, steps 1–12 from rest | 150 | 146 | 147 | 226 |
-//! | cloth-40 stretched ×3, steps 1–3 | 5, 118, 40 | 5, 116, 34 | 5, 143, 50 | 6, 209, 95 |
-//! | cloth-40 crushed to 1 %, steps 1–3 | 243, 20, 18 | 242, 20, 18 | 165, 42, 43 | 300 (the limit), 81, 107 |
-//!
-//! (a): two probes running at once; the other times with one.
-//!
-//! `hooke bench cloth-160` computed its own state with the default without the elimination,
-//! state D (its ten exact steps
-//! took 8, 24, 21, 33, 10, 11, 20, 19, 35 and 22 iterations), and takes 30 iterations to 1e-8 on
-//! it, 41.3 s (benches/README.md); relaxing after every step, 28 on D and 19 on that setting's own
-//! bench state (24.0 s); without focused sweeps either, 23 on its own. A buckling step has
-//! several solutions, the 10 exact steps that make the state pick among them, and the states differ
-//! with the solver that made them, so issue 4's bound of 25 iterations was checked on all of these
-//! states: it holds on A, B and C (15–22 with this default, 15–19 relaxing always, 18–27 without
-//! the focused sweeps) and not on D (30 and 28), where the iterations stall twice, near a gradient
-//! of 1e-4 and again near 1e-6, with blend weights of 1e-3–0.2 whose lower steps keep failing: the
-//! Hessian is still indefinite that close to the solution, though at the solution it is definite
-//! and well conditioned (smallest generalised eigenvalue 0.54 M, `HOOKE_EIG=1`): the quadratic model
-//! holds only in a tiny region around it. On D, 100 focused sweeps gave 26 to
-//! 1e-8, a focus share of 1/128 or 1/64 28 and 29, three rings 28. The counts depend on the
-//! settings more than one would like (the path through the buckling is chaotic). Without the
-//! focused sweeps, on state A: 8, 10 and 12 sweeps gave 29, 19 and 23 iterations; 5 sweeps 24; 1
-//! Newton step per vertex and sweep 34; a first blend weight of 1e-2 27; a tenfold blend factor 28;
-//! relaxing only after blended or short steps 50, and only once an indefinite Hessian has been met
-//! in the solve also 50 (that variant keeps cloth-40's speed-vs-error step at 7 iterations and
-//! 0.14 s, but takes 88 iterations over its first 12 steps). Focused sweeps from a fixed 100
-//! vertices, without the early stop: 22, 16 and 17 on states B, A and C; on state B 300 vertices
-//! 18, 200 sweeps 19, 30 vertices 24. The relaxation alone, under the other policies: 32 with the
-//! shift, 58 and 87 with the indefinite Newton step (5 and 10 sweeps of one step per vertex); the
-//! blend alone (no relaxation, tenfold blend factor) on cloth-40's 4th step from rest 37 iterations
-//! against 186 with the shift. One Newton step per vertex and visit instead of 3 (or stopping a
-//! vertex's steps at the first one taken in full) halves the relaxation's cost, at the same count
-//! on cloth-40's 12 steps (68 against 70) but 21, 19 and 17–20 instead of 19, 15 and 18 iterations
-//! to 1e-8 on states B, A and C (and 246 against 232 iterations over steps 1–8 from rest); 2 steps
-//! gave 20, 15 and 14; 5 sweeps instead of 10, 21, 16 and 17
-//! (and 76 on cloth-40, 136 against 146 on cloth-80). On cloth-40 the default costs more time than it saves (14
-//! factorisations, 80 sweeps and 54 focused ones against 7 factorisations); set
-//! [`Relaxation::NONE`] and [`IndefinitePolicy::NewtonIfDescent`] for small, mildly buckled meshes.
-//!
-//! Measured before and slower on cloth-160's step (code not kept): a Levenberg–Marquardt ratio test
-//! (182 iterations), falling back to the clamped Hessian (135), trust-region switching between exact
-//! and clamped Hessians (134), refusing indefinite steps shorter than α = 1 (119), the Hessian with
-//! absolute eigenvalue filtering, k|1 − l/|r|| across a compressed spring (Chen et al. 2024),
-//! wherever the exact one is indefinite (125) or only before a shift (285), a trust region in the
-//! D-norm with Moré–Sorensen steps (87, but 453 factorisations), a chord step with the same factor
-//! after every full step (111), a second-order correction on rejected full steps along the arc
-//! x + αΔ + α²Δ_c, Δ_c = −H⁻¹∇Φ(x + Δ) (228), a search along the most negative curvature
-//! direction of the blend (8 steps of power iteration with its factor) after every blended step
-//! (27 against 28 on state B: the decreases it finds are 1e-3 of an iteration's), and the held LDLᵀ factor with its negative pivots
-//! replaced by their absolute values (99, but 338 against 226 iterations on cloth-80's 12 steps).
-//!
-//! The backtracking (Armijo) line search compares Φ(x + αΔ) − Φ(x) computed by
-//! [`NewtonProblem::objective_change`], which problems implement without the cancellation of
-//! subtracting two values of Φ: near the solution the decrease is ~‖g‖², far below the round-off of
-//! Φ itself. When a shortened step still lowers Φ by no more than its round-off, the solve stops with
-//! [`StopReason::Stagnated`]: the tolerance asked for is below what the arithmetic resolves.
-//!
-//! SCENES.md's crushed-to-1 % start stays hard for every policy: every compressed spring has
-//! transverse curvature −k(l/|r| − 1) ≈ −99k, non-convex only within ~1 % of l of the start, so every
-//! local model is valid in a tiny region. The simulation halves such steps (`hooke-sim`'s backward
-//! Euler).
+//! SCENES.md's crushed-to-1 % start stays hard for every policy (every local model is valid in a
+//! tiny region); the simulation halves such steps (`hooke-sim`'s backward Euler).
 
 use std::time::{Duration, Instant};
 
@@ -186,7 +51,27 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
 use crate::operator::dot;
+use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
+
+/// The most steps of the shift (or blend weight) ladder from [`NewtonParams::initial_shift`] to
+/// [`NewtonParams::max_shift`]: the defaults take 16 (shift) and 34 (blend); a factor so close to 1
+/// that the ladder would be longer is refused, since every step may cost a factorisation.
+pub const MAX_SHIFT_STEPS: f64 = 200.0;
+
+/// The largest count accepted for the relaxation's sweeps and iteration limits (each unit may
+/// cost a pass over the mesh): far above any useful setting, low enough that a typo does not hang.
+pub const MAX_RELAXATION_COUNT: usize = 10_000;
+
+/// The largest number of rings of neighbours accepted by [`Relaxation`].
+pub const MAX_RINGS: usize = 1_000;
+
+/// The largest number of covers accepted by [`Relaxation::patch_covers`].
+pub const MAX_PATCH_COVERS: usize = 16;
+
+/// The most step halvings of the line search: 2⁻¹⁰⁷⁴ is the smallest positive double, so more
+/// would only try α = 0 again.
+pub const MAX_LINE_SEARCH_HALVINGS: usize = 1074;
 
 /// A line-searched step that lowers Φ by at most this many units of round-off (ε|Φ|) counts as no
 /// progress: the iterate is at the resolution floor of Φ and its gradient.
@@ -267,8 +152,8 @@ pub struct Relaxation {
     /// Default 3.
     pub block_iterations: usize,
     /// The share of the blocks, those with the largest gradient norms, that the focused sweeps
-    /// start from (rounded up to a whole block; 0, a negative value or NaN: no focused sweeps; above
-    /// 1 the same as 1). Default 1/256 (100 of
+    /// start from, finite and ≥ 0 (rounded up to a whole block; 0: no focused sweeps; above 1 the
+    /// same as 1). Default 1/256 (100 of
     /// cloth-160's 25,598 free vertices, 7 of cloth-40's 1,598).
     pub focus_share: f64,
     /// Rings of neighbouring blocks added around the selected ones. Default 2.
@@ -281,7 +166,8 @@ pub struct Relaxation {
     /// (0: never skip). Default 0.02. A solid that does not buckle (beam-4) then never relaxes.
     pub trusted_model: f64,
     /// Nonlinear elimination after the sweeps: the share of the blocks with the largest
-    /// gradients (rounded up to a whole block; 0, a negative value or NaN: none) selects patches
+    /// gradients, finite and ≥ 0 (rounded up to a whole block; 0: none; above 1 the same as 1),
+    /// selects patches
     /// of a fixed cover of the blocks, and each selected patch is solved as one problem,
     /// everything else held, by an inner [`Newton`] with the relaxation [`Relaxation::inner`] (no
     /// elimination of its own). A fold is a collective mode of many vertices that single-vertex
@@ -291,8 +177,8 @@ pub struct Relaxation {
     /// factorisations once per problem ([`NewtonProblem::prepare_relaxation`]), so an elimination
     /// allocates nothing. Default 1/64 (400 of cloth-160's 25,598 free vertices).
     pub region_share: f64,
-    /// The size of the cover's cells, as a share of the blocks (rounded up to a whole block; 0, a
-    /// negative value or NaN: one cell of all blocks). Each patch keeps its own problem and
+    /// The size of the cover's cells, as a share of the blocks, finite and ≥ 0 (rounded up to a
+    /// whole block; 0 or above 1: one cell of all blocks). Each patch keeps its own problem and
     /// factorisation, so the memory grows with the patches' total size, overlaps included (about
     /// twice the mesh's with the defaults on cloth-160). Default 1/32 (800 of cloth-160's free vertices, about 1,500 with their
     /// rings).
@@ -348,6 +234,52 @@ impl Default for Relaxation {
 }
 
 impl Relaxation {
+    /// Check every field against its allowed range (stated in [`ParamError`]'s message): the
+    /// shares, the coverage, the concentration and the tolerances finite and ≥ 0 (a share above 1
+    /// counts as 1, a concentration above 1 never eliminates); the
+    /// counts at most [`MAX_RELAXATION_COUNT`], the rings at most [`MAX_RINGS`], the covers at
+    /// most [`MAX_PATCH_COVERS`] (and at least 1 when the elimination is on).
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        // Shares above 1 mean all of them, a concentration above 1 never eliminating.
+        let unit = |field, value: f64| params::non_negative(field, value);
+        let count =
+            |field, value| params::count_in(field, value, 0, MAX_RELAXATION_COUNT, "at most 10000");
+        let rings = |field, value| params::count_in(field, value, 0, MAX_RINGS, "at most 1000");
+        count("Relaxation::sweeps", self.sweeps)?;
+        count("Relaxation::block_iterations", self.block_iterations)?;
+        unit("Relaxation::focus_share", self.focus_share)?;
+        rings("Relaxation::focus_rings", self.focus_rings)?;
+        count("Relaxation::focus_sweeps", self.focus_sweeps)?;
+        params::non_negative("Relaxation::trusted_model", self.trusted_model)?;
+        unit("Relaxation::region_share", self.region_share)?;
+        unit("Relaxation::patch_share", self.patch_share)?;
+        let covers_min = usize::from(self.region_blocks(1) > 0);
+        params::count_in(
+            "Relaxation::patch_covers",
+            self.patch_covers,
+            covers_min,
+            MAX_PATCH_COVERS,
+            if covers_min == 1 {
+                "in 1..=16 when the elimination is on"
+            } else {
+                "at most 16"
+            },
+        )?;
+        rings("Relaxation::region_rings", self.region_rings)?;
+        unit("Relaxation::region_coverage", self.region_coverage)?;
+        unit(
+            "Relaxation::region_concentration",
+            self.region_concentration,
+        )?;
+        params::non_negative("Relaxation::region_tolerance", self.region_tolerance)?;
+        count("Relaxation::region_iterations", self.region_iterations)?;
+        count("Relaxation::region_sweeps", self.region_sweeps)?;
+        Ok(())
+    }
+
     /// No relaxation: plain Newton.
     pub const NONE: Relaxation = Relaxation {
         sweeps: 0,
@@ -465,7 +397,7 @@ pub struct NewtonParams {
     /// Above this shift the solve gives up (the problem is not convex enough to fix). Default 1e12.
     pub max_shift: f64,
     /// What to do when the unshifted matrix is indefinite. Default
-    /// [`IndefinitePolicy::NewtonIfDescent`].
+    /// [`IndefinitePolicy::ConvexBlend`].
     pub indefinite: IndefinitePolicy,
     /// Nonlinear relaxation after every accepted step, where the problem supports it. Default
     /// [`Relaxation::default`]; [`Relaxation::NONE`] for plain Newton.
@@ -490,6 +422,72 @@ pub enum IndefinitePolicy {
     /// Always shift until the matrix is positive definite: every step minimises a convex model, at
     /// the price of linear convergence wherever the shift stays on.
     Shift,
+}
+
+impl NewtonParams {
+    /// Check every field against its allowed range: `tolerance` finite and ≥ 0 (relative);
+    /// `max_iterations` ≥ 1; `armijo` in (0, 1); `max_halvings` at most
+    /// [`MAX_LINE_SEARCH_HALVINGS`]; `initial_shift` finite and > 0; `shift_factor` and
+    /// `blend_factor` finite and > 1; `max_shift` finite, ≥ `initial_shift`, and reached from it
+    /// within [`MAX_SHIFT_STEPS`] steps of either factor; and the nested [`Relaxation::validate`]
+    /// and [`CholeskyParams::validate`].
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::non_negative("NewtonParams::tolerance", self.tolerance)?;
+        params::at_least(
+            "NewtonParams::max_iterations",
+            self.max_iterations,
+            1,
+            "at least 1",
+        )?;
+        params::real(
+            "NewtonParams::armijo",
+            self.armijo,
+            self.armijo > 0.0 && self.armijo < 1.0,
+            "in (0, 1)",
+        )?;
+        params::count_in(
+            "NewtonParams::max_halvings",
+            self.max_halvings,
+            0,
+            MAX_LINE_SEARCH_HALVINGS,
+            "at most 1074",
+        )?;
+        params::positive("NewtonParams::initial_shift", self.initial_shift)?;
+        for (field, factor) in [
+            ("NewtonParams::shift_factor", self.shift_factor),
+            ("NewtonParams::blend_factor", self.blend_factor),
+        ] {
+            params::real(
+                field,
+                factor,
+                factor > 1.0 && factor.is_finite(),
+                "finite and > 1",
+            )?;
+        }
+        params::real(
+            "NewtonParams::max_shift",
+            self.max_shift,
+            self.max_shift.is_finite() && self.max_shift >= self.initial_shift,
+            "finite and >= initial_shift",
+        )?;
+        let ratio = (self.max_shift / self.initial_shift).ln();
+        for (field, factor) in [
+            ("NewtonParams::shift_factor", self.shift_factor),
+            ("NewtonParams::blend_factor", self.blend_factor),
+        ] {
+            params::real(
+                field,
+                factor,
+                ratio / factor.ln() <= MAX_SHIFT_STEPS,
+                "large enough to reach max_shift from initial_shift in at most 200 steps",
+            )?;
+        }
+        self.relaxation.validate()?;
+        self.cholesky.validate()
+    }
 }
 
 impl Default for NewtonParams {
@@ -580,13 +578,15 @@ pub struct NewtonReport {
 }
 
 impl NewtonReport {
-    /// An empty report whose history has room for `iterations` records.
+    /// An empty report whose history has room for `iterations` records, at most
+    /// a fixed reserve (the history grows beyond it as iterations go: no allocation is sized by a
+    /// user's limit).
     pub(crate) fn with_capacity(iterations: usize) -> Self {
         NewtonReport {
             iterations: 0,
             initial_gradient: 1.0,
             initial_objective: 0.0,
-            history: Vec::with_capacity(iterations),
+            history: Vec::with_capacity(iterations.min(HISTORY_RESERVE)),
             shifted_steps: 0,
             indefinite_steps: 0,
             failed_factorizations: 0,
@@ -653,6 +653,21 @@ pub enum NewtonError {
     /// The Hessian does not have the analysed pattern, or its analysis failed.
     #[error(transparent)]
     Factorization(#[from] CholeskyError),
+    /// A parameter is out of its range ([`NewtonParams::validate`]); nothing was computed.
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
+}
+
+impl NewtonError {
+    /// The report up to the failure, for the variants that carry one.
+    pub fn report(&self) -> Option<&NewtonReport> {
+        match self {
+            NewtonError::LineSearchFailed { report }
+            | NewtonError::NotPositiveDefinite { report, .. }
+            | NewtonError::NonFinite { report } => Some(report),
+            NewtonError::Factorization(_) | NewtonError::InvalidParameter(_) => None,
+        }
+    }
 }
 
 /// Why [`Newton::minimize_into`] failed; [`NewtonError`] without the report.
@@ -662,6 +677,7 @@ pub(crate) enum Failure {
     NotPositiveDefinite { max_shift: f64 },
     NonFinite,
     Factorization(CholeskyError),
+    InvalidParameter(ParamError),
 }
 
 impl Failure {
@@ -675,6 +691,7 @@ impl Failure {
             }
             Failure::NonFinite => NewtonError::NonFinite { report },
             Failure::Factorization(e) => NewtonError::Factorization(e),
+            Failure::InvalidParameter(e) => NewtonError::InvalidParameter(e),
         }
     }
 }
@@ -705,6 +722,7 @@ impl Newton {
     /// Analyse the problem's Hessian pattern once.
     ///
     /// # Errors
+    /// [`NewtonError::InvalidParameter`] if `params` does not pass [`NewtonParams::validate`];
     /// [`NewtonError::Factorization`] if the symbolic analysis fails.
     ///
     /// # Panics
@@ -714,6 +732,7 @@ impl Newton {
         pattern: SymbolicSparseColMatRef<'_, usize>,
         params: NewtonParams,
     ) -> Result<Self, NewtonError> {
+        params.validate()?;
         let n = pattern.ncols();
         let diagonal_slots = (0..n)
             .map(|j| {
@@ -933,7 +952,9 @@ impl Newton {
     /// Minimise Φ from the guess in `x` (which holds the result on return).
     ///
     /// # Errors
-    /// [`NewtonError`], carrying the report so far.
+    /// [`NewtonError`], carrying the report so far; [`NewtonError::InvalidParameter`] (before
+    /// anything is computed) if [`Newton::params`] was set to values [`NewtonParams::validate`]
+    /// refuses.
     ///
     /// # Panics
     /// If `x` or the problem's pattern does not match the analysed dimension.
@@ -970,6 +991,7 @@ impl Newton {
         );
         let start = Instant::now();
         let mut p = self.params;
+        p.validate().map_err(Failure::InvalidParameter)?;
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
         }
@@ -991,7 +1013,7 @@ impl Newton {
         let mut gradient = g0 * scale;
         loop {
             if !(phi.is_finite() && gradient.is_finite()) {
-                finish(report, StopReason::IterationLimit);
+                finish(report, StopReason::NonFinite);
                 return Err(Failure::NonFinite);
             }
             if gradient <= p.tolerance || g0 == 0.0 {
@@ -1049,7 +1071,7 @@ impl Newton {
                             let noise = problem.gradient_round_off(x);
                             let norm = dot(&self.g, &self.g).sqrt();
                             if norm <= noise {
-                                finish(report, StopReason::Stagnated);
+                                finish(report, StopReason::RoundOff);
                                 return Ok(());
                             }
                             finish(report, StopReason::IterationLimit);
@@ -1104,9 +1126,9 @@ impl Newton {
                     report.relaxation_time += relaxing.elapsed();
                 }
             }
-            // A shortened step that lowers Φ by no more than its round-off means the iterate sits on
-            // the floor of what the arithmetic can resolve: further iterations would only inflate
-            // the shift. Stop and say so.
+            // A shortened step that lowers Φ by no more than its round-off: further iterations
+            // would only inflate the shift. Stop; converged only if the gradient is at its proven
+            // rounding floor (checked below, at the new iterate), stagnated otherwise.
             let stagnated = alpha < 1.0 && -change <= STAGNATION_ULPS * f64::EPSILON * phi.abs();
             phi = problem.objective(x);
             problem.gradient(x, &mut self.g);
@@ -1127,7 +1149,16 @@ impl Newton {
                 step_length: alpha,
             });
             if stagnated {
-                finish(report, StopReason::Stagnated);
+                let floor = problem.gradient_round_off(x);
+                let norm = dot(&self.g, &self.g).sqrt();
+                let stop = if gradient <= p.tolerance {
+                    StopReason::Converged
+                } else if norm <= floor {
+                    StopReason::RoundOff
+                } else {
+                    StopReason::Stagnated
+                };
+                finish(report, stop);
                 return Ok(());
             }
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.

@@ -16,7 +16,7 @@
 //! - A backtracking Armijo search on the exactly computed change of Φ accepts each step, so Φ never
 //!   increases. It stops as [`Newton`](crate::Newton) does: ‖∇Φ‖ ≤ tolerance · ‖∇Φ(x⁰)‖, the
 //!   iteration limit, or a failed search at the gradient's rounding error
-//!   ([`StopReason::Stagnated`]); a failed search above it is an error.
+//!   ([`StopReason::RoundOff`], converged as far as the arithmetic resolves); a failed search above it is an error.
 
 use std::time::{Duration, Instant};
 
@@ -273,7 +273,7 @@ impl NewtonCg {
         loop {
             let gradient = report.gradient();
             if !(phi0.is_finite() && gradient.is_finite()) {
-                finish(&mut report, StopReason::IterationLimit);
+                finish(&mut report, StopReason::NonFinite);
                 return Err(NewtonCgError::NonFinite { report });
             }
             if g0 == 0.0 || gradient <= p.tolerance {
@@ -290,7 +290,7 @@ impl NewtonCg {
             previous_gradient = gradient;
             let hessian = Symmetric(problem.hessian(x));
             if !self.truncated_cg(&hessian, preconditioner, forcing, &mut report) {
-                finish(&mut report, StopReason::IterationLimit);
+                finish(&mut report, StopReason::NonFinite);
                 return Err(NewtonCgError::NonFinite { report });
             }
             let slope = dot(&self.g, &self.step);
@@ -301,7 +301,7 @@ impl NewtonCg {
             };
             let Some((alpha, change)) = accepted else {
                 if norm(&self.g) <= problem.gradient_round_off(x) {
-                    finish(&mut report, StopReason::Stagnated);
+                    finish(&mut report, StopReason::RoundOff);
                     return Ok(report);
                 }
                 finish(&mut report, StopReason::IterationLimit);

@@ -19,7 +19,40 @@ use nalgebra::SVector;
 use crate::backward_euler::spring_energy_change;
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 use crate::operator::Preconditioner;
+use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
+
+/// Why projective dynamics could not be set up or run.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PdError {
+    /// A parameter is out of its range ([`PdParams::validate`]), or the time step is not finite
+    /// and positive; nothing was computed.
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
+    /// The global matrix did not factor (e.g. a free component with zero mass and no pin, or
+    /// non-finite values).
+    #[error(transparent)]
+    Factorization(#[from] CholeskyError),
+}
+
+impl PdParams {
+    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (relative), and
+    /// [`CholeskyParams::validate`].
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::at_least(
+            "PdParams::max_iterations",
+            self.max_iterations,
+            1,
+            "at least 1",
+        )?;
+        params::non_negative("PdParams::tolerance", self.tolerance)?;
+        self.cholesky.validate()
+    }
+}
 
 /// Settings of [`ProjectiveDynamics`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,15 +123,18 @@ impl<const D: usize> ProjectiveDynamics<D> {
     /// masses (kg, per vertex of the full mesh) and time step `h` (s).
     ///
     /// # Errors
-    /// [`CholeskyError`] if the matrix does not factor (e.g. a free component with zero mass and no
-    /// pin) or holds non-finite values.
+    /// [`PdError::InvalidParameter`] if `params` does not pass [`PdParams::validate`] or `h` is
+    /// not finite and positive; [`PdError::Factorization`] if the matrix does not factor (e.g. a
+    /// free component with zero mass and no pin) or holds non-finite values.
     pub fn new(
         springs: &[Spring],
         masses: &[f64],
         free: &FreeDofs,
         h: f64,
         params: PdParams,
-    ) -> Result<Self, CholeskyError> {
+    ) -> Result<Self, PdError> {
+        params.validate()?;
+        params::positive("ProjectiveDynamics::new: h", h)?;
         let pattern = LaplacianPattern::new(free.vertex_count(), springs, Some(free));
         let cholesky_params = CholeskyParams {
             kind: match params.cholesky.kind {
@@ -225,7 +261,14 @@ impl<const D: usize> ProjectiveDynamics<D> {
 
     /// Run projective dynamics for the step with inertial target `y` (per vertex, m). `x` holds the
     /// initial guess (usually y) with the pinned vertices at their prescribed positions, and the
-    /// result on return (pinned vertices untouched).
+    /// result on return (pinned vertices untouched). The report's stop is
+    /// [`StopReason::Converged`] when the tolerance was met, [`StopReason::IterationLimit`] after
+    /// the iteration budget (the method's usual stop, not converged), and
+    /// [`StopReason::NonFinite`] as soon as a position change is NaN or infinite.
+    ///
+    /// # Errors
+    /// [`PdError::InvalidParameter`] (before anything is computed) if [`ProjectiveDynamics::params`]
+    /// was set to values [`PdParams::validate`] refuses.
     ///
     /// # Panics
     /// If the lengths of `springs`, `y` or `x` do not match the system.
@@ -235,14 +278,16 @@ impl<const D: usize> ProjectiveDynamics<D> {
         springs: &[Spring],
         y: &[SVector<f64, D>],
         x: &mut [SVector<f64, D>],
-    ) -> PdReport {
+    ) -> Result<PdReport, PdError> {
+        self.params.validate()?;
         let start = Instant::now();
         let p = self.params;
         let mut report = PdReport {
             iterations: 0,
-            changes: Vec::with_capacity(p.max_iterations),
+            // Reserved up to a fixed size, never by the user's limit: beyond it they grow.
+            changes: Vec::with_capacity(p.max_iterations.min(HISTORY_RESERVE)),
             objectives: Vec::with_capacity(if p.record_objective {
-                p.max_iterations + 1
+                p.max_iterations.saturating_add(1).min(HISTORY_RESERVE)
             } else {
                 0
             }),
@@ -260,13 +305,17 @@ impl<const D: usize> ProjectiveDynamics<D> {
             if p.record_objective {
                 report.objectives.push(self.objective(springs, y, x));
             }
+            if !change.is_finite() {
+                report.stop = StopReason::NonFinite;
+                break;
+            }
             if change <= p.tolerance * largest_displacement {
                 report.stop = StopReason::Converged;
                 break;
             }
         }
         report.wall_time = start.elapsed();
-        report
+        Ok(report)
     }
 
     /// One iteration (local step, right-hand side, D-column solve) from `x`, written into `x`:

@@ -2,16 +2,46 @@
 
 use std::time::Duration;
 
-/// Why an iterative solver stopped.
+use crate::params::{ParamError, HISTORY_RESERVE};
+
+/// Why an iterative solver stopped. Only [`StopReason::Converged`] and [`StopReason::RoundOff`]
+/// mean the solution asked for was found ([`StopReason::is_converged`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum StopReason {
     /// The residual met the requested tolerance.
     Converged,
-    /// The iteration limit was reached first.
+    /// The residual is at its proven rounding floor (the solver's problem bounds the rounding
+    /// error of its residual, and the residual is below that bound): the tolerance asked for is
+    /// below what the arithmetic resolves, and the iterate is as converged as it can be.
+    RoundOff,
+    /// The iteration limit was reached first: not converged.
     IterationLimit,
-    /// The residual stopped decreasing.
+    /// The iterations stopped making progress while the residual was still above the tolerance
+    /// and above its rounding floor: not converged.
     Stagnated,
+    /// The objective, the residual or the iterate became NaN or infinite: not converged.
+    NonFinite,
+}
+
+impl StopReason {
+    /// Whether the solve reached its goal: the tolerance ([`StopReason::Converged`]) or the proven
+    /// rounding floor ([`StopReason::RoundOff`]).
+    pub fn is_converged(self) -> bool {
+        matches!(self, StopReason::Converged | StopReason::RoundOff)
+    }
+
+    /// A short name for reports (`converged`, `round-off`, `iteration-limit`, `stagnated`,
+    /// `non-finite`).
+    pub fn name(self) -> &'static str {
+        match self {
+            StopReason::Converged => "converged",
+            StopReason::RoundOff => "round-off",
+            StopReason::IterationLimit => "iteration-limit",
+            StopReason::Stagnated => "stagnated",
+            StopReason::NonFinite => "non-finite",
+        }
+    }
 }
 
 /// What an iterative solve did: iterations, final residual and why it stopped, without the history
@@ -48,8 +78,9 @@ impl Report {
     pub(crate) fn start(max_iterations: usize) -> Self {
         Report {
             iterations: 0,
-            // Reserved once, so the iterations never allocate.
-            residuals: Vec::with_capacity(max_iterations.saturating_add(1).min(1 << 20)),
+            // Reserved up front, so that the usual solve never allocates in its iterations; a
+            // limit beyond the reserve grows the history as it goes, never by the user's limit.
+            residuals: Vec::with_capacity(max_iterations.saturating_add(1).min(HISTORY_RESERVE)),
             wall_time: Duration::ZERO,
             stop: StopReason::IterationLimit,
         }
@@ -96,6 +127,9 @@ pub enum SolveError {
         /// The report so far.
         report: Report,
     },
+    /// A parameter of the solver is out of its range (checked before the first iteration).
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
     /// A diagonal block of the preconditioner or of Jacobi's splitting is singular.
     #[error("diagonal block {block} is singular")]
     SingularBlock {

@@ -45,7 +45,7 @@ use std::path::PathBuf;
 pub use cli::{run_command, BenchArgs};
 pub use hard::{
     energy_scale, hard_case, hard_case_settings, hard_cases, HardCaseOptions, HardOutcome,
-    HardResult, HARD_CASES, HARD_INTEGRATORS,
+    HardResult, HARD_CASES, HARD_CASE_OVERRIDES, HARD_INTEGRATORS,
 };
 pub use measure::{ErrorMeter, Measures};
 pub use output::{

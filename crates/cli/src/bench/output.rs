@@ -189,7 +189,8 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
         }
     }
     const W: usize = 30;
-    let mut s = format!("{:<20}", "case");
+    let mut s = format!("{}\n", crate::bench::HARD_CASE_OVERRIDES);
+    s += &format!("{:<20}", "case");
     for i in &integrators {
         s += &format!(" | {i:<W$}");
     }

@@ -319,7 +319,9 @@ impl Runner {
                 pd.params.tolerance = tolerance;
                 x.copy_from_slice(&problem.y);
                 let start = Instant::now();
-                let report = pd.solve(springs, &problem.y, x);
+                let report = pd
+                    .solve(springs, &problem.y, x)
+                    .map_err(|e| e.to_string())?;
                 let wall = start.elapsed();
                 let note = (matches!(setting, Setting::Tolerance(_))
                     && report.stop != StopReason::Converged)
@@ -348,8 +350,13 @@ impl Runner {
                     .minimize(objective.as_mut(), unknowns)
                     .map_err(|e| e.to_string())?;
                 let note = match (setting, report.stop) {
+                    (_, StopReason::RoundOff) => Some(format!(
+                        "at the round-off floor, relative gradient {:.1e}",
+                        report.gradient()
+                    )),
                     (_, StopReason::Stagnated) => Some(format!(
-                        "stagnated at the round-off floor, relative gradient {:.1e}",
+                        "stagnated above the round-off floor (not converged), relative gradient \
+                         {:.1e}",
                         report.gradient()
                     )),
                     (Setting::Tolerance(_), StopReason::IterationLimit) => {
@@ -449,8 +456,8 @@ impl Runner {
                         )
                     };
                 let stop_note = match (setting, stop) {
-                    (_, StopReason::Stagnated) => Some(format!(
-                        "stagnated at the round-off floor, relative gradient {gradient:.1e}"
+                    (_, StopReason::RoundOff) => Some(format!(
+                        "at the round-off floor, relative gradient {gradient:.1e}"
                     )),
                     (Setting::Tolerance(_), StopReason::IterationLimit) => {
                         Some("stopped at its iteration limit".to_string())
@@ -484,7 +491,7 @@ impl Runner {
                     note += &format!(", {} restart(s)", report.restarts);
                 }
                 if report.stop == StopReason::Stagnated {
-                    note += ", stopped at PD's rounding floor";
+                    note += ", stopped where even plain PD raised Φ (its rounding floor; not converged)";
                 }
                 Ok(RunResult {
                     positions: x.clone(),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use hooke_assembly::FreeDofs;
-use hooke_solvers::{BackwardEulerStep, Newton, NewtonParams, NewtonProblem, StopReason};
+use hooke_solvers::{BackwardEulerStep, Newton, NewtonParams, NewtonProblem};
 use nalgebra::Vector3;
 
 use crate::bench::BenchError;
@@ -271,12 +271,13 @@ fn start_state(
             report.wall_time.as_secs_f64(),
             begin.elapsed().as_secs_f64()
         ));
-        if summary.stop == StopReason::IterationLimit {
+        if !summary.stop.is_converged() {
             return Err(BenchError::Reference {
                 scene: setup.name.clone(),
                 reason: format!(
-                    "step {step} of the exact run stopped at {REFERENCE_MAX_ITERATIONS} Newton \
-                     iterations with relative gradient {:e}",
+                    "step {step} of the exact run did not converge ({}, at most \
+                     {REFERENCE_MAX_ITERATIONS} Newton iterations) with relative gradient {:e}",
+                    summary.stop.name(),
                     summary.residual
                 ),
             });
@@ -312,9 +313,11 @@ fn solve_reference(
     let report = newton
         .minimize(&mut objective, &mut unknowns)
         .map_err(|e| fail(e.to_string()))?;
-    if report.stop == StopReason::IterationLimit {
+    if !report.stop.is_converged() {
         return Err(fail(format!(
-            "Newton stopped at {REFERENCE_MAX_ITERATIONS} iterations with relative gradient {:e}",
+            "Newton did not converge ({}, at most {REFERENCE_MAX_ITERATIONS} iterations) with \
+             relative gradient {:e}",
+            report.stop.name(),
             report.gradient()
         )));
     }

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 pub use preview::{render_preview, PreviewInput, PreviewPositions};
 pub use progress::progress_bar;
-pub use summary::{write_summary, RunSummary, SolverSettingsRecord, StepRecord};
+pub use summary::{write_summary, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord};
 
 // Extras the binary may not need (other image sizes, reading a summary back): for tests and tools.
 #[allow(unused_imports)]

@@ -38,6 +38,10 @@ pub struct RunSummary {
     /// (absent in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pin_method: Option<String>,
+    /// What each step's `solver_residual` is, with its unit (absent for explicit integrators
+    /// and in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver_residual: Option<ResidualRecord>,
     /// One record per step, in order.
     pub steps: Vec<StepRecord>,
 }
@@ -58,6 +62,17 @@ pub struct SolverSettingsRecord {
     /// Relative tolerance (linear residual, Newton gradient, PD position change).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+}
+
+/// What a step's `solver_residual` measures: Newton's relative gradient (unit `1`), projective
+/// dynamics' last position change (`m`), or the linearised integrator's relative linear residual
+/// (`1`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResidualRecord {
+    /// The quantity, in words (e.g. `relative gradient |grad Phi(x)| / |grad Phi(x0)|`).
+    pub quantity: String,
+    /// Its unit: `1` for a dimensionless ratio, `m` for metres.
+    pub unit: String,
 }
 
 /// The state after one step and what the step cost.
@@ -84,13 +99,19 @@ pub struct StepRecord {
     /// Iterations of the step's solver (Newton, conjugate gradient, projective dynamics…), summed
     /// over substeps; `None` for explicit integrators, which solve nothing.
     pub solver_iterations: Option<usize>,
-    /// The solver's final residual as it reports it (its own norm and scaling); `None` for
-    /// explicit integrators.
+    /// The solver's final residual: the quantity, with its unit, that the run's
+    /// `solver_residual` record names; `None` for explicit integrators.
     pub solver_residual: Option<f64>,
-    /// Why the solver stopped: `converged`, `iteration-limit` or `stagnated`; `None` for explicit
-    /// integrators. A linear solve that stopped at its limit is kept and marked so here.
+    /// Why the solver stopped: `converged`, `round-off` (at the proven rounding floor: converged),
+    /// `iteration-limit`, `stagnated` or `non-finite`; `None` for explicit integrators. A linear
+    /// solve that stopped at its limit is kept and marked so here.
     #[serde(default)]
     pub solver_stop: Option<String>,
+    /// Whether the solver converged in this step (`solver_stop` is `converged` or `round-off` in
+    /// every piece of the step); `None` for explicit integrators and in older files. Projective
+    /// dynamics with its fixed iteration budget (tolerance 0) reports `false`.
+    #[serde(default)]
+    pub solver_converged: Option<bool>,
     /// The linearised integrator solved this step with the clamped Hessian because the exact one
     /// gave a system that is not positive definite.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -165,6 +186,10 @@ mod tests {
                 ..Default::default()
             }),
             pin_method: Some("counter-force".into()),
+            solver_residual: Some(ResidualRecord {
+                quantity: "relative gradient".into(),
+                unit: "1".into(),
+            }),
             steps: vec![
                 StepRecord {
                     step: 1,
@@ -176,6 +201,7 @@ mod tests {
                     solver_iterations: Some(7),
                     solver_residual: Some(3.5e-11),
                     solver_stop: Some("converged".into()),
+                    solver_converged: Some(true),
                     clamped_hessian: true,
                     halved_into: Some(4),
                     wall_time_s: 0.0042,
@@ -190,6 +216,7 @@ mod tests {
                     solver_iterations: None,
                     solver_residual: None,
                     solver_stop: None,
+                    solver_converged: None,
                     clamped_hessian: false,
                     halved_into: None,
                     wall_time_s: 1e-3,

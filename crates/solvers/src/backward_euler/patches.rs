@@ -312,7 +312,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.region_local = local;
         let masses: Vec<f64> = vertices.iter().map(|&v| self.masses[v as usize]).collect();
         let free = FreeDofs::new(vertices.len(), &held).ok()?;
-        let step = BackwardEulerStep::<D>::new(&springs, &masses, free, self.h);
+        let mut step = BackwardEulerStep::<D>::new(&springs, &masses, free, self.h);
+        step.set_parallel(self.parallel);
         let params = NewtonParams {
             max_iterations: relaxation.region_iterations,
             ..NewtonParams::default()

@@ -1,0 +1,229 @@
+//! Backward Euler's objective Φ, its change, gradient and Hessians: the [`NewtonProblem`] side of
+//! [`BackwardEulerStep`].
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use hooke_assembly::{Definiteness, HessianParams};
+use nalgebra::SVector;
+
+use super::{spring_energy_change, BackwardEulerStep};
+use crate::{NewtonProblem, Relaxation, RelaxationWork};
+
+impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
+    fn dim(&self) -> usize {
+        if self.counter.is_some() {
+            D * self.free.vertex_count()
+        } else {
+            D * self.free.free_count()
+        }
+    }
+
+    fn objective(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        let inertia: f64 = self
+            .free
+            .free_vertices()
+            .iter()
+            .map(|&v| {
+                let v = v as usize;
+                0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
+            })
+            .sum();
+        inertia
+            + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, self.parallel)
+            + self.dashpot_potential(&self.x)
+    }
+
+    /// Φ(trial) − Φ(x) term by term, so that its round-off is relative to the change rather than to
+    /// Φ. Everything is written in the displacements δ = t − x (exact in floating point for nearby
+    /// t and x), never as a difference of two rounded values of a term: per vertex
+    /// ½ m δ·(2(x − y) + δ); per spring, with Δr = δ_i − δ_j and r_t = r_x + Δr,
+    /// ½ k (|r_t| − |r_x|)(|r_t| + |r_x| − 2l) where |r_t| − |r_x| = Δr·(2 r_x + Δr) / (|r_t| + |r_x|);
+    /// the dashpot likewise. Summed in a fixed order.
+    fn objective_change(&mut self, xf: &[f64], trial: &[f64]) -> f64 {
+        self.expand(xf);
+        // trial_positions holds δ per vertex (zero at pinned ones).
+        for d in self.trial_positions.iter_mut() {
+            *d = SVector::zeros();
+        }
+        let mut inertia = 0.0;
+        let full = self.counter.is_some();
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let o = Self::offset(full, f, v);
+            let x = SVector::<f64, D>::from_column_slice(&xf[o..o + D]);
+            let t = SVector::<f64, D>::from_column_slice(&trial[o..o + D]);
+            let delta = t - x;
+            self.trial_positions[v] = delta;
+            inertia += 0.5 * self.masses[v] * delta.dot(&((x - self.y[v]) * 2.0 + delta));
+        }
+        let (x, delta) = (&self.x, &self.trial_positions);
+        let springs = &self.springs;
+        let energy = hooke_assembly::deterministic_sum(springs.len(), self.parallel, |s| {
+            let spring = &springs[s];
+            let (i, j) = spring.ends();
+            spring_energy_change(
+                spring.stiffness,
+                spring.rest_length,
+                &(x[i] - x[j]),
+                &(delta[i] - delta[j]),
+            )
+        });
+        let dashpot = if self.dashpot == 0.0 {
+            0.0
+        } else {
+            let this = &*self;
+            let sum = hooke_assembly::deterministic_sum(this.springs.len(), this.parallel, |s| {
+                let (i, j) = this.springs[s].ends();
+                let a_x = this.dashpot_stretch(s, &this.x);
+                let da = (this.trial_positions[i] - this.trial_positions[j])
+                    .dot(&this.dashpot_directions[s]);
+                da * (2.0 * a_x + da)
+            });
+            0.5 * this.h * this.dashpot * sum
+        };
+        inertia + self.h * self.h * energy + dashpot
+    }
+
+    fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
+        self.expand(xf);
+        self.forces
+            .compute(&self.springs, &self.x, None, &mut self.force, self.parallel);
+        let h2 = self.h * self.h;
+        if self.dashpot > 0.0 {
+            // h² times the dashpot force, −∇Ψ, scattered serially in spring order (deterministic).
+            let scale = self.h * self.dashpot / h2;
+            for s in 0..self.springs.len() {
+                let (i, j) = self.springs[s].ends();
+                let f = self.dashpot_directions[s] * (scale * self.dashpot_stretch(s, &self.x));
+                self.force[i] -= f;
+                self.force[j] += f;
+            }
+        }
+        let full = self.counter.is_some();
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let v = v as usize;
+            let gv = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
+            let o = Self::offset(full, f, v);
+            g[o..o + D].copy_from_slice(gv.as_slice());
+        }
+        if let Some(counter) = &self.counter {
+            // The counter-force cancels the whole force on a pinned vertex held in place.
+            counter.apply_to_gradient(g);
+        }
+    }
+
+    /// ε times the sizes of the terms the gradient sums per DOF: m (|x − y| + |x|) and
+    /// h² Σ_s (|f_s| + k_s (|x_i| + |x_j|)) over the vertex's springs (and the dashpot's), the |x|
+    /// terms for the rounding of the positions themselves, with a factor for the number of terms
+    /// (the largest vertex degree + 2, the usual bound on a sum's rounding).
+    fn gradient_round_off(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        let h2 = self.h * self.h;
+        // Per vertex: Σ |f_s|, into `force` (reused).
+        for f in self.force.iter_mut() {
+            *f = SVector::zeros();
+        }
+        for (s, spring) in self.springs.iter().enumerate() {
+            let (i, j) = spring.ends();
+            let mut f = hooke_assembly::spring::force(
+                spring.stiffness,
+                spring.rest_length,
+                &(self.x[i] - self.x[j]),
+            )
+            .abs()
+                // Rounding of r = x_i − x_j itself moves |r| − l by ε (|x_i| + |x_j|).
+                + SVector::repeat(spring.stiffness * (self.x[i].norm() + self.x[j].norm()));
+            if self.dashpot > 0.0 {
+                f += (self.dashpot_directions[s]
+                    * (self.h * self.dashpot / h2 * self.dashpot_stretch(s, &self.x)))
+                .abs();
+            }
+            self.force[i] += f;
+            self.force[j] += f;
+        }
+        let terms = self.max_degree as f64 + 2.0;
+        let sum: f64 = self
+            .free
+            .free_vertices()
+            .iter()
+            .map(|&v| {
+                let v = v as usize;
+                // |x| as well as |x − y|: y and x carry their own rounding of ε |x|.
+                ((self.x[v] - self.y[v]).abs() * self.masses[v]
+                    + SVector::repeat(self.masses[v] * self.x[v].norm())
+                    + self.force[v] * h2)
+                    .norm_squared()
+            })
+            .sum();
+        terms * f64::EPSILON * sum.sqrt()
+    }
+
+    fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        self.pattern.symbolic()
+    }
+
+    fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
+        self.assemble(xf, self.definiteness)
+    }
+
+    fn shift_diagonal(&self) -> &[f64] {
+        &self.shift
+    }
+
+    fn has_convexified_hessian(&self) -> bool {
+        true
+    }
+
+    /// The Hessian with the clamped spring blocks ([`Definiteness::Clamped`]): positive definite
+    /// with the masses.
+    fn convexified_hessian(&mut self, xf: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+        Some(self.assemble(xf, Definiteness::Clamped))
+    }
+
+    fn prepare_relaxation(&mut self, relaxation: Relaxation) {
+        self.prepare_patches(relaxation)
+    }
+
+    fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
+        self.relax_all(xf, relaxation)
+    }
+}
+
+impl<const D: usize> BackwardEulerStep<D> {
+    /// Assemble the Hessian at `xf` with the spring blocks of `definiteness` (dashpot and
+    /// counter-forces included) into `values`.
+    fn assemble(
+        &mut self,
+        xf: &[f64],
+        definiteness: Definiteness,
+    ) -> SparseColMatRef<'_, usize, f64> {
+        self.expand(xf);
+        self.pattern.assemble_into(
+            &self.springs,
+            &self.x,
+            &self.masses,
+            self.h,
+            HessianParams {
+                definiteness,
+                parallel: self.parallel,
+            },
+            &mut self.workspace,
+            &mut self.values,
+        );
+        if self.dashpot > 0.0 {
+            // ∇²Ψ = h c d dᵀ blocks, directions from the step's start.
+            self.pattern.add_dashpot_into(
+                &self.springs,
+                &self.dashpot_start,
+                self.dashpot,
+                self.h,
+                &mut self.values,
+            );
+        }
+        if let Some(counter) = &self.counter {
+            // Pinned rows and columns: m_p I on the diagonal, zero elsewhere.
+            counter.apply_to_matrix(&self.masses, &mut self.values);
+        }
+        self.pattern.matrix(&self.values)
+    }
+}

@@ -1,0 +1,441 @@
+//! Every parameter struct over extreme values (0, negative, NaN, ±∞, huge, tiny): either its
+//! `validate()` refuses the value, naming the field, and the solver refuses it the same way before
+//! computing anything, or the solve finishes within a bounded number of iterations (no hang, no
+//! abort from an allocation sized by the limit, no panic).
+
+use hooke_assembly::FreeDofs;
+use hooke_mesh::generators;
+use hooke_solvers::{
+    BackwardEulerStep, BlockJacobi, CgParams, CholeskyError, CholeskyParams, ConjugateGradient,
+    Identity, IndefinitePolicy, Jacobi, JacobiParams, Newton, NewtonError, NewtonParams,
+    NewtonProblem, ParamError, PdError, PdParams, ProjectiveDynamics, Relaxation, SolveError,
+    SparseCholesky, StopReason,
+};
+use nalgebra::{DMatrix, Vector3};
+use proptest::prelude::*;
+
+mod common;
+use common::inertial_target;
+
+/// The same refusal (NaN values compare unequal, so compare what the error says).
+fn same(a: &ParamError, b: &ParamError) -> bool {
+    a.field() == b.field() && a.to_string() == b.to_string()
+}
+
+/// Every solve here finishes far below this many iterations; a test that hangs fails by timing out.
+const BOUND: usize = 10_000;
+
+fn extreme_real() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(0.0),
+        Just(-0.0),
+        Just(-1.0),
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(f64::NEG_INFINITY),
+        Just(1e300),
+        Just(f64::MAX),
+        Just(1e-300),
+        Just(f64::MIN_POSITIVE),
+        Just(1.0),
+        Just(1.0 + f64::EPSILON),
+        0.0f64..4.0,
+        -1e3f64..1e3,
+    ]
+}
+
+fn extreme_count() -> impl Strategy<Value = usize> {
+    prop_oneof![
+        Just(0usize),
+        Just(1),
+        Just(usize::MAX),
+        Just(1usize << 40),
+        Just(1_000_000_000_000),
+        0usize..40,
+    ]
+}
+
+/// cloth-4 with two pins, a backward Euler step pulled sideways and down: small, but it buckles
+/// a little (the indefinite paths of Newton are taken).
+fn cloth_problem() -> (BackwardEulerStep<3>, Vec<f64>, Vec<Vector3<f64>>) {
+    let n = 4;
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let pinned = [0, n as u32 - 1];
+    let h = 1.0 / 30.0;
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let y = inertial_target(mesh.positions(), &pinned, |_, x| {
+        Vector3::new(-0.2 * x.x, -9.81 * h * h, 0.05)
+    });
+    let mut step = BackwardEulerStep::new(mesh.springs(), mesh.masses(), free, h);
+    let mut unknowns = vec![0.0; step.dim()];
+    step.set_step(&y, mesh.positions(), &mut unknowns);
+    (step, unknowns, y)
+}
+
+/// Set the `field`-th real field of Newton's settings (relaxation included).
+fn set_newton_real(p: &mut NewtonParams, field: usize, value: f64) -> &'static str {
+    let r = &mut p.relaxation;
+    let (slot, name): (&mut f64, _) = match field {
+        0 => (&mut p.tolerance, "NewtonParams::tolerance"),
+        1 => (&mut p.armijo, "NewtonParams::armijo"),
+        2 => (&mut p.initial_shift, "NewtonParams::initial_shift"),
+        3 => (&mut p.shift_factor, "NewtonParams::shift_factor"),
+        4 => (&mut p.blend_factor, "NewtonParams::blend_factor"),
+        5 => (&mut p.max_shift, "NewtonParams::max_shift"),
+        6 => (&mut r.focus_share, "Relaxation::focus_share"),
+        7 => (&mut r.trusted_model, "Relaxation::trusted_model"),
+        8 => (&mut r.region_share, "Relaxation::region_share"),
+        9 => (&mut r.patch_share, "Relaxation::patch_share"),
+        10 => (&mut r.region_coverage, "Relaxation::region_coverage"),
+        11 => (
+            &mut r.region_concentration,
+            "Relaxation::region_concentration",
+        ),
+        _ => (&mut r.region_tolerance, "Relaxation::region_tolerance"),
+    };
+    *slot = value;
+    name
+}
+const NEWTON_REALS: usize = 13;
+
+/// Set the `field`-th count of Newton's settings (relaxation and factorisation included).
+fn set_newton_count(p: &mut NewtonParams, field: usize, value: usize) -> &'static str {
+    let r = &mut p.relaxation;
+    let (slot, name): (&mut usize, _) = match field {
+        0 => (&mut p.max_iterations, "NewtonParams::max_iterations"),
+        1 => (&mut p.max_halvings, "NewtonParams::max_halvings"),
+        2 => (&mut r.sweeps, "Relaxation::sweeps"),
+        3 => (&mut r.block_iterations, "Relaxation::block_iterations"),
+        4 => (&mut r.focus_rings, "Relaxation::focus_rings"),
+        5 => (&mut r.focus_sweeps, "Relaxation::focus_sweeps"),
+        6 => (&mut r.patch_covers, "Relaxation::patch_covers"),
+        7 => (&mut r.region_rings, "Relaxation::region_rings"),
+        8 => (&mut r.region_iterations, "Relaxation::region_iterations"),
+        9 => (&mut r.region_sweeps, "Relaxation::region_sweeps"),
+        10 => (
+            &mut p.cholesky.factor_threads,
+            "CholeskyParams::factor_threads",
+        ),
+        _ => (
+            &mut p.cholesky.solve_threads,
+            "CholeskyParams::solve_threads",
+        ),
+    };
+    *slot = value;
+    name
+}
+const NEWTON_COUNTS: usize = 12;
+
+/// The fields whose range depends on `field`'s value (the shift ladder's three settings, the
+/// elimination's switch and its covers): a change of `field` may be reported on any of them.
+fn related(field: &str) -> &'static [&'static str] {
+    match field {
+        "NewtonParams::initial_shift"
+        | "NewtonParams::max_shift"
+        | "NewtonParams::shift_factor"
+        | "NewtonParams::blend_factor" => &[
+            "NewtonParams::initial_shift",
+            "NewtonParams::max_shift",
+            "NewtonParams::shift_factor",
+            "NewtonParams::blend_factor",
+        ],
+        "Relaxation::region_share" | "Relaxation::region_iterations" => &[
+            "Relaxation::region_share",
+            "Relaxation::region_iterations",
+            "Relaxation::patch_covers",
+        ],
+        _ => &[],
+    }
+}
+
+/// Newton with `params` on the cloth problem: refused with the field named, or finished.
+fn check_newton(params: NewtonParams, field: &'static str) -> Result<(), TestCaseError> {
+    let (mut step, mut unknowns, _) = cloth_problem();
+    let validated = params.validate();
+    let built = Newton::new(step.pattern(), params);
+    match validated {
+        Err(e) => {
+            prop_assert!(
+                e.field() == field || related(field).contains(&e.field()),
+                "{field} changed, {} refused: {e}",
+                e.field()
+            );
+            prop_assert!(e.to_string().contains(e.field()), "{e}");
+            prop_assert!(
+                matches!(&built, Err(NewtonError::InvalidParameter(b)) if same(b, &e)),
+                "{built:?}"
+            );
+            // Settings made invalid after construction are refused by the solve as well.
+            let mut newton = Newton::new(step.pattern(), NewtonParams::default()).unwrap();
+            newton.params = params;
+            let solved = newton.minimize(&mut step, &mut unknowns);
+            prop_assert!(
+                matches!(&solved, Err(NewtonError::InvalidParameter(b)) if same(b, &e)),
+                "{solved:?}"
+            );
+        }
+        Ok(()) => {
+            let mut newton = built.unwrap();
+            match newton.minimize(&mut step, &mut unknowns) {
+                Ok(report) => {
+                    prop_assert!(report.iterations <= params.max_iterations.min(BOUND));
+                    prop_assert_eq!(report.history.len(), report.iterations);
+                    if report.stop.is_converged() {
+                        prop_assert!(
+                            report.gradient() <= params.tolerance
+                                || report.stop == StopReason::RoundOff,
+                            "{report:?}"
+                        );
+                    }
+                }
+                Err(e) => {
+                    let report = e.report().expect("a solve error carries its report");
+                    prop_assert!(report.iterations <= BOUND, "{e}");
+                    prop_assert!(!report.stop.is_converged(), "{e}");
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
+
+    #[test]
+    fn newton_real_settings_are_refused_or_finish(
+        field in 0..NEWTON_REALS,
+        value in extreme_real(),
+        policy in prop_oneof![
+            Just(IndefinitePolicy::ConvexBlend),
+            Just(IndefinitePolicy::NewtonIfDescent),
+            Just(IndefinitePolicy::Shift),
+        ],
+    ) {
+        let mut params = NewtonParams { indefinite: policy, ..NewtonParams::default() };
+        let name = set_newton_real(&mut params, field, value);
+        check_newton(params, name)?;
+    }
+
+    #[test]
+    fn newton_counts_are_refused_or_finish(field in 0..NEWTON_COUNTS, value in extreme_count()) {
+        let mut params = NewtonParams::default();
+        let name = set_newton_count(&mut params, field, value);
+        check_newton(params, name)?;
+    }
+
+    #[test]
+    fn cg_and_jacobi_settings_are_refused_or_finish(
+        field in 0..6usize,
+        real in extreme_real(),
+        count in extreme_count(),
+    ) {
+        // A small block diagonally dominant SPD system: CG and Jacobi both converge on it.
+        let n = 6;
+        let a = DMatrix::from_fn(n, n, |i, j| {
+            if i == j { 4.0 } else if i.abs_diff(j) == 1 { -1.0 } else { 0.0 }
+        });
+        let b = vec![1.0; n];
+        let mut cg = CgParams::default();
+        let mut jacobi = JacobiParams::default();
+        let name = match field {
+            0 => { cg.tolerance = real; "CgParams::tolerance" }
+            1 => { cg.max_iterations = count; "CgParams::max_iterations" }
+            2 => { jacobi.tolerance = real; "JacobiParams::tolerance" }
+            3 => { jacobi.max_iterations = count; "JacobiParams::max_iterations" }
+            4 => { jacobi.weight = real; "JacobiParams::weight" }
+            _ => { jacobi.divergence_factor = real; "JacobiParams::divergence_factor" }
+        };
+        let blocks = BlockJacobi::<3>::from_dense(&a).unwrap();
+        let checks = [
+            (cg.validate(), {
+                let mut x = vec![0.0; n];
+                ConjugateGradient::new(cg).solve(&a, &mut Identity, &b, &mut x)
+            }),
+            (jacobi.validate(), {
+                let mut x = vec![0.0; n];
+                Jacobi::new(jacobi).solve(&a, &blocks, &b, &mut x)
+            }),
+        ];
+        for (validated, solved) in checks {
+            match validated {
+                Err(e) => {
+                    prop_assert_eq!(e.field(), name);
+                    prop_assert!(
+                        matches!(&solved, Err(SolveError::InvalidParameter(b)) if same(b, &e)),
+                        "{solved:?}"
+                    );
+                }
+                Ok(()) => match solved {
+                    Ok(report) => prop_assert!(report.iterations <= BOUND, "{report:?}"),
+                    Err(e) => prop_assert!(false, "a valid setting failed on an SPD system: {e}"),
+                },
+            }
+        }
+    }
+
+    #[test]
+    fn pd_and_cholesky_settings_are_refused_or_finish(
+        field in 0..4usize,
+        real in extreme_real(),
+        count in extreme_count(),
+    ) {
+        let n = 4;
+        let mesh = generators::cloth(n, 1e3).unwrap();
+        let pinned = [0, n as u32 - 1];
+        let h = 1.0 / 30.0;
+        let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+        let y = inertial_target(mesh.positions(), &pinned, |_, _| Vector3::new(0.0, -0.01, 0.0));
+        // A tolerance, so that a huge iteration budget still ends (PD runs its whole budget at
+        // tolerance 0, by design).
+        let mut params = PdParams { tolerance: 1e-6, ..PdParams::default() };
+        let name = match field {
+            0 => { params.max_iterations = count; "PdParams::max_iterations" }
+            1 => { params.tolerance = real; "PdParams::tolerance" }
+            2 => { params.cholesky.factor_threads = count; "CholeskyParams::factor_threads" }
+            _ => { params.cholesky.solve_threads = count; "CholeskyParams::solve_threads" }
+        };
+        let built = ProjectiveDynamics::<3>::new(mesh.springs(), mesh.masses(), &free, h, params);
+        match params.validate() {
+            Err(e) => {
+                prop_assert_eq!(e.field(), name);
+                prop_assert!(
+                    matches!(&built, Err(PdError::InvalidParameter(b)) if same(b, &e)),
+                    "{built:?}"
+                );
+                if name.starts_with("CholeskyParams") {
+                    let chol = SparseCholesky::analyze(
+                        hooke_assembly::pd::LaplacianPattern::new(
+                            free.vertex_count(), mesh.springs(), Some(&free)
+                        ).symbolic(),
+                        params.cholesky,
+                    );
+                    prop_assert!(
+                        matches!(&chol, Err(CholeskyError::InvalidParameter(b)) if same(b, &e)),
+                        "{:?}", chol.err()
+                    );
+                }
+            }
+            Ok(()) => {
+                let mut pd = built.unwrap();
+                let mut x = y.clone();
+                // A huge budget only ends by the tolerance; 0 would run it all.
+                if params.tolerance == 0.0 && params.max_iterations > BOUND {
+                    return Ok(());
+                }
+                let report = pd.solve(mesh.springs(), &y, &mut x).unwrap();
+                prop_assert!(report.iterations <= params.max_iterations.min(BOUND));
+                prop_assert!(x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+            }
+        }
+    }
+}
+
+#[test]
+fn the_values_of_issue_19_are_refused_with_the_field_and_its_range() {
+    let refused = |p: NewtonParams| p.validate().unwrap_err();
+    let d = NewtonParams::default();
+    for (params, field, range) in [
+        (
+            NewtonParams {
+                blend_factor: 1.0,
+                ..d
+            },
+            "NewtonParams::blend_factor",
+            "> 1",
+        ),
+        (
+            NewtonParams {
+                blend_factor: 0.5,
+                ..d
+            },
+            "NewtonParams::blend_factor",
+            "> 1",
+        ),
+        (
+            NewtonParams {
+                initial_shift: 0.0,
+                ..d
+            },
+            "NewtonParams::initial_shift",
+            "> 0",
+        ),
+        (
+            NewtonParams {
+                max_shift: f64::INFINITY,
+                ..d
+            },
+            "NewtonParams::max_shift",
+            "finite",
+        ),
+        (
+            NewtonParams {
+                shift_factor: 1.0,
+                indefinite: IndefinitePolicy::Shift,
+                ..d
+            },
+            "NewtonParams::shift_factor",
+            "> 1",
+        ),
+        (
+            NewtonParams {
+                max_iterations: 0,
+                ..d
+            },
+            "NewtonParams::max_iterations",
+            "at least 1",
+        ),
+        (
+            NewtonParams {
+                tolerance: f64::NAN,
+                ..d
+            },
+            "NewtonParams::tolerance",
+            ">= 0",
+        ),
+    ] {
+        let e = refused(params);
+        assert_eq!(e.field(), field, "{e}");
+        let message = e.to_string();
+        assert!(
+            message.contains(field) && message.contains(range),
+            "{message}"
+        );
+    }
+    assert!(matches!(
+        PdParams {
+            max_iterations: 0,
+            ..PdParams::default()
+        }
+        .validate(),
+        Err(ParamError::Count {
+            field: "PdParams::max_iterations",
+            value: 0,
+            ..
+        })
+    ));
+    assert!(CholeskyParams::default().validate().is_ok());
+    assert!(Relaxation::NONE.validate().is_ok() && Relaxation::default().validate().is_ok());
+    assert!(NewtonParams::default().validate().is_ok());
+}
+
+#[test]
+fn a_huge_iteration_limit_allocates_nothing_by_it_and_finishes() {
+    // 10¹² iterations (48 TB of history if reserved by the limit) and usize::MAX: the solve
+    // converges in a few iterations and the history holds only those.
+    for limit in [1_000_000_000_000, usize::MAX] {
+        let (mut step, mut unknowns, _) = cloth_problem();
+        let params = NewtonParams {
+            max_iterations: limit,
+            ..NewtonParams::default()
+        };
+        let mut newton = Newton::new(step.pattern(), params).unwrap();
+        let report = newton.minimize(&mut step, &mut unknowns).unwrap();
+        assert_eq!(report.stop, StopReason::Converged, "{report:?}");
+        assert!(
+            report.history.capacity() <= 1024,
+            "{}",
+            report.history.capacity()
+        );
+    }
+}
