@@ -266,7 +266,10 @@ mod tests {
                     assert!((fd - g[axis]).abs() < 1e-6 * scale, "{kind:?} {r:?}");
                 }
             }
-            assert_eq!(k.gradient(&SVector::<f64, 2>::zeros()), SVector::<f64, 2>::zeros());
+            assert_eq!(
+                k.gradient(&SVector::<f64, 2>::zeros()),
+                SVector::<f64, 2>::zeros()
+            );
         }
     }
 

@@ -47,7 +47,12 @@ fn hydrostatic_column_holds_its_pressure() {
     // Depth below the free surface, taken half a spacing above the top particle; bands of 0.2 m
     // below the first one (whose mean pressure is a few particle layers' worth, too small for a
     // relative measure).
-    let top = fluid.positions().iter().map(|p| p.y).fold(f64::MIN, f64::max) + 0.5 * dx;
+    let top = fluid
+        .positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::MIN, f64::max)
+        + 0.5 * dx;
     for band in 1..10 {
         let (d0, d1) = (0.2 * band as f64, 0.2 * (band + 1) as f64);
         let (sum, count) = fluid
