@@ -13,7 +13,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
     let steps = 5u32;
     println!("threads {}", rayon::current_num_threads());
-    println!("N,boundary,ms_per_step,particle_steps_per_s,search_ms,density_ms,forces_ms,update_ms");
+    println!(
+        "N,boundary,ms_per_step,particle_steps_per_s,search_ms,density_ms,forces_ms,update_ms"
+    );
     for n in counts {
         let side = (n as f64).sqrt().round();
         let spec = ColumnInTank::<2> {
