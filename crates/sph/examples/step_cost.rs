@@ -1,0 +1,57 @@
+//! Cost of a 2D WCSPH step against particle count, split by phase (the same measurement as
+//! `hooke bench --sph`, without the command's plot).
+//!
+//! `cargo run --release -p hooke-sph --example step_cost -- 10000 100000 1000000`
+use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
+use hooke_sph::{Fluid, FluidParams};
+use nalgebra::SVector;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let counts: Vec<usize> = std::env::args()
+        .skip(1)
+        .map(|s| s.parse::<f64>().map(|n| n as usize))
+        .collect::<Result<_, _>>()?;
+    let steps = 5u32;
+    println!("threads {}", rayon::current_num_threads());
+    println!(
+        "N,boundary,ms_per_step,particle_steps_per_s,search_ms,density_ms,forces_ms,update_ms"
+    );
+    for n in counts {
+        let side = (n as f64).sqrt().round();
+        let spec = ColumnInTank::<2> {
+            tank_min: SVector::zeros(),
+            tank_max: SVector::<f64, 2>::new(2.0, 1.5),
+            walls: [[true, true], [true, false]],
+            column_max: SVector::<f64, 2>::new(1.0, 1.0),
+            dx: 1.0 / side,
+            layers: WALL_LAYERS,
+            params: FluidParams {
+                sound_speed: 0.0,
+                ..FluidParams::default()
+            },
+        };
+        let mut fluid = Fluid::new(spec.build()?)?;
+        fluid.step()?;
+        fluid.step()?;
+        fluid.reset_timings();
+        let start = std::time::Instant::now();
+        for _ in 0..steps {
+            fluid.step()?;
+        }
+        let per = start.elapsed().as_secs_f64() / steps as f64;
+        let t = fluid.timings();
+        let ms = |d: std::time::Duration| 1e3 * d.as_secs_f64() / steps as f64;
+        println!(
+            "{},{},{:.3},{:.4e},{:.3},{:.3},{:.3},{:.3}",
+            fluid.fluid_count(),
+            fluid.boundary_count(),
+            1e3 * per,
+            fluid.fluid_count() as f64 / per,
+            ms(t.neighbour_search),
+            ms(t.density),
+            ms(t.forces),
+            ms(t.integration)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,826 @@
+//! The weakly compressible fluid: state, one step, and what a run reports.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::SVector;
+use rayon::prelude::*;
+
+use crate::{
+    DensityMethod, FluidParams, FluidSetup, Integrator, Kernel, NeighbourGrid, SphError, Walls,
+};
+
+/// Fewest grid cells allowed whatever the particle count (a 2D domain of 1024² cells).
+const MIN_CELL_LIMIT: usize = 1 << 20;
+/// Cells allowed per particle beyond [`MIN_CELL_LIMIT`]: a domain far larger than the fluid needs a
+/// sparse search this crate does not have.
+const CELLS_PER_PARTICLE: usize = 64;
+/// A stable step below this fraction of the acoustic step C·h/c₀ means the flow has blown up.
+const COLLAPSE_FRACTION: f64 = 1e-6;
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// The step taken, Δt (s).
+    pub dt: f64,
+    /// The stability bound at the step: min(C·h/(c₀ + |v|max), f·√(h/|a|max)) (s).
+    pub bound: f64,
+}
+
+/// What [`Fluid::advance_to`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdvanceReport {
+    /// Steps taken.
+    pub steps: u64,
+    /// Smallest step (s), not counting the last step when it was shortened to land on the end
+    /// time (unless it was the only one); +∞ if no step was taken.
+    pub min_dt: f64,
+    /// Largest step (s), counted as `min_dt`; 0 if no step was taken.
+    pub max_dt: f64,
+}
+
+/// Wall time spent in each phase of the force evaluations since the fluid was built (or
+/// [`Fluid::reset_timings`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PhaseTimings {
+    /// Sorting particles by cell, and gathering their data into and out of that order.
+    pub neighbour_search: Duration,
+    /// Density summation and the equation of state (only the latter with the continuity method).
+    pub density: Duration,
+    /// Pressure, viscosity and gravity forces (and the continuity equation's density rate).
+    pub forces: Duration,
+    /// Step size, the checks of the new state, and the position, velocity and density updates.
+    pub integration: Duration,
+    /// Force evaluations made (one per step, plus one for each [`Fluid::refresh`] of a stale state).
+    pub evaluations: u64,
+}
+
+/// Particle data in grid order, rebuilt at each evaluation (buffers reused).
+#[derive(Debug, Clone, Default)]
+struct Sorted<const D: usize> {
+    positions: Vec<SVector<f64, D>>,
+    velocities: Vec<SVector<f64, D>>,
+    densities: Vec<f64>,
+    pressures: Vec<f64>,
+    accelerations: Vec<SVector<f64, D>>,
+    density_rates: Vec<f64>,
+    /// Particle index → sorted slot.
+    rank: Vec<u32>,
+}
+
+/// A weakly compressible SPH fluid (SPEC §7) with fixed boundary particles, in `D` = 2 or 3.
+///
+/// Particles are numbered fluid first (`0..fluid_count()`), then boundary. Each step evaluates, on
+/// a grid of cells one support radius wide (an O(n) neighbour search), the density (by summation,
+/// or its rate by the continuity equation), the Tait pressure p = B((ρ/ρ₀)^γ − 1), the symmetric
+/// pressure force −mᵢ Σⱼ mⱼ (pᵢ/ρᵢ² + pⱼ/ρⱼ²) ∇ᵢWᵢⱼ, Monaghan's artificial viscosity and gravity,
+/// and advances by the stable step (CFL and force conditions). Boundary particles take part in
+/// densities and forces with zero velocity and never move; their pressure is clamped at 0 so that
+/// walls push and never pull.
+///
+/// Sums run over each particle's neighbours in grid order, which depends on the positions only:
+/// results are the same, bit for bit, for any number of threads.
+///
+/// ```
+/// use hooke_sph::scenes::hydrostatic_2d;
+/// let mut scene = hydrostatic_2d(0.1)?;
+/// let mut fluid = hooke_sph::Fluid::new(scene.setup)?;
+/// fluid.advance_to(0.01)?;
+/// assert!(fluid.time() == 0.01 && fluid.steps() > 0);
+/// # Ok::<(), hooke_sph::SphError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Fluid<const D: usize> {
+    params: FluidParams<D>,
+    kernel: Kernel<D>,
+    walls: Walls,
+    domain_min: SVector<f64, D>,
+    domain_max: SVector<f64, D>,
+    mass: f64,
+    fluid_count: usize,
+    positions: Vec<SVector<f64, D>>,
+    velocities: Vec<SVector<f64, D>>,
+    densities: Vec<f64>,
+    pressures: Vec<f64>,
+    accelerations: Vec<SVector<f64, D>>,
+    density_rates: Vec<f64>,
+    grid: NeighbourGrid<D>,
+    sorted: Sorted<D>,
+    /// Densities (summation), pressures, accelerations and the grid belong to the current state.
+    evaluated: bool,
+    time: f64,
+    steps: u64,
+    timings: PhaseTimings,
+}
+
+fn finite<const D: usize>(v: &SVector<f64, D>) -> Option<f64> {
+    v.iter().copied().find(|x| !x.is_finite())
+}
+
+impl<const D: usize> Fluid<D> {
+    /// Builds the fluid from `setup`, validating everything.
+    ///
+    /// # Errors
+    /// [`SphError::InvalidParameter`] for a parameter out of range (naming it), a non-positive
+    /// particle mass or an empty domain; [`SphError::EmptyFluid`]; [`SphError::LengthMismatch`];
+    /// [`SphError::BadParticleValue`] for a NaN/infinite position or velocity or a non-positive
+    /// density; [`SphError::OutsideDomain`]; [`SphError::GridTooLarge`].
+    pub fn new(setup: FluidSetup<D>) -> Result<Self, SphError> {
+        let p = setup.params;
+        p.validate()?;
+        let kernel = Kernel::new(p.kernel, p.smoothing_length)?;
+        if !(setup.particle_mass.is_finite() && setup.particle_mass > 0.0) {
+            return Err(SphError::InvalidParameter {
+                name: "particle_mass",
+                value: setup.particle_mass,
+                allowed: "finite and > 0 (kg, or kg/m in 2D)",
+            });
+        }
+        let nf = setup.fluid_positions.len();
+        let nb = setup.boundary_positions.len();
+        if nf == 0 {
+            return Err(SphError::EmptyFluid);
+        }
+        let n = nf + nb;
+        if u32::try_from(n).is_err() {
+            return Err(SphError::InvalidParameter {
+                name: "particle count",
+                value: n as f64,
+                allowed: "at most u32::MAX",
+            });
+        }
+        for (what, len, expected) in [
+            ("fluid_velocities", setup.fluid_velocities.len(), nf),
+            ("fluid_densities", setup.fluid_densities.len(), nf),
+            ("boundary_densities", setup.boundary_densities.len(), nb),
+        ] {
+            if len != 0 && len != expected {
+                return Err(SphError::LengthMismatch {
+                    what,
+                    expected,
+                    found: len,
+                });
+            }
+        }
+        let (lo, hi) = (setup.domain_min, setup.domain_max);
+        for a in 0..D {
+            if !(lo[a].is_finite() && hi[a].is_finite() && hi[a] > lo[a]) {
+                return Err(SphError::InvalidParameter {
+                    name: "domain",
+                    value: hi[a] - lo[a],
+                    allowed: "finite corners with domain_max > domain_min on every axis (m)",
+                });
+            }
+        }
+        let bad = |what, index, value| SphError::BadParticleValue { what, index, value };
+        for (what, list) in [
+            ("fluid particle", &setup.fluid_positions),
+            ("boundary particle", &setup.boundary_positions),
+        ] {
+            for (i, x) in list.iter().enumerate() {
+                if let Some(v) = finite(x) {
+                    return Err(bad(what, i, v));
+                }
+                if (0..D).any(|a| x[a] < lo[a] || x[a] > hi[a]) {
+                    return Err(SphError::OutsideDomain {
+                        what,
+                        index: i,
+                        position: x.iter().copied().collect(),
+                        min: lo.iter().copied().collect(),
+                        max: hi.iter().copied().collect(),
+                    });
+                }
+            }
+        }
+        for (i, v) in setup.fluid_velocities.iter().enumerate() {
+            if let Some(x) = finite(v) {
+                return Err(bad("fluid velocity", i, x));
+            }
+        }
+        for (what, list) in [
+            ("fluid density", &setup.fluid_densities),
+            ("boundary density", &setup.boundary_densities),
+        ] {
+            if let Some((i, &r)) = list
+                .iter()
+                .enumerate()
+                .find(|(_, r)| !(r.is_finite() && **r > 0.0))
+            {
+                return Err(bad(what, i, r));
+            }
+        }
+        let grid = NeighbourGrid::new(
+            lo,
+            hi,
+            kernel.support_radius(),
+            MIN_CELL_LIMIT.max(CELLS_PER_PARTICLE.saturating_mul(n)),
+        )?;
+
+        let mut positions = setup.fluid_positions;
+        positions.extend_from_slice(&setup.boundary_positions);
+        let mut velocities = if setup.fluid_velocities.is_empty() {
+            vec![SVector::zeros(); nf]
+        } else {
+            setup.fluid_velocities
+        };
+        velocities.resize(n, SVector::zeros());
+        let mut densities = if setup.fluid_densities.is_empty() {
+            vec![p.rest_density; nf]
+        } else {
+            setup.fluid_densities
+        };
+        if setup.boundary_densities.is_empty() {
+            densities.resize(n, p.rest_density);
+        } else {
+            densities.extend_from_slice(&setup.boundary_densities);
+        }
+        Ok(Fluid {
+            params: p,
+            kernel,
+            walls: setup.walls,
+            domain_min: lo,
+            domain_max: hi,
+            mass: setup.particle_mass,
+            fluid_count: nf,
+            positions,
+            velocities,
+            densities,
+            pressures: vec![0.0; n],
+            accelerations: vec![SVector::zeros(); n],
+            density_rates: vec![0.0; n],
+            grid,
+            sorted: Sorted::default(),
+            evaluated: false,
+            time: 0.0,
+            steps: 0,
+            timings: PhaseTimings::default(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &FluidParams<D> {
+        &self.params
+    }
+
+    /// The kernel.
+    pub fn kernel(&self) -> &Kernel<D> {
+        &self.kernel
+    }
+
+    /// How the walls act.
+    pub fn walls(&self) -> Walls {
+        self.walls
+    }
+
+    /// The domain's corners (m).
+    pub fn domain(&self) -> (SVector<f64, D>, SVector<f64, D>) {
+        (self.domain_min, self.domain_max)
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// The number of fluid particles.
+    pub fn fluid_count(&self) -> usize {
+        self.fluid_count
+    }
+
+    /// The number of boundary particles.
+    pub fn boundary_count(&self) -> usize {
+        self.positions.len() - self.fluid_count
+    }
+
+    /// The mass of each particle (kg, or kg/m in 2D).
+    pub fn particle_mass(&self) -> f64 {
+        self.mass
+    }
+
+    /// The total fluid mass (kg, or kg/m in 2D): exactly conserved, since particles keep their mass.
+    pub fn total_mass(&self) -> f64 {
+        self.mass * self.fluid_count as f64
+    }
+
+    /// Fluid positions (m).
+    pub fn positions(&self) -> &[SVector<f64, D>] {
+        &self.positions[..self.fluid_count]
+    }
+
+    /// Fluid velocities (m/s).
+    pub fn velocities(&self) -> &[SVector<f64, D>] {
+        &self.velocities[..self.fluid_count]
+    }
+
+    /// Boundary particle positions (m).
+    pub fn boundary_positions(&self) -> &[SVector<f64, D>] {
+        &self.positions[self.fluid_count..]
+    }
+
+    /// Fluid densities (kg/mᴰ) as of the last evaluation: call [`refresh`](Self::refresh) first
+    /// for the current state's with the summation method.
+    pub fn densities(&self) -> &[f64] {
+        &self.densities[..self.fluid_count]
+    }
+
+    /// Boundary particle densities (kg/mᴰ), as [`densities`](Self::densities).
+    pub fn boundary_densities(&self) -> &[f64] {
+        &self.densities[self.fluid_count..]
+    }
+
+    /// Fluid pressures (Pa in 3D, N/m in 2D) as of the last evaluation (see [`refresh`](Self::refresh)).
+    pub fn pressures(&self) -> &[f64] {
+        &self.pressures[..self.fluid_count]
+    }
+
+    /// Fluid accelerations (m/s²) as of the last evaluation (see [`refresh`](Self::refresh)).
+    pub fn accelerations(&self) -> &[SVector<f64, D>] {
+        &self.accelerations[..self.fluid_count]
+    }
+
+    /// Time spent per phase.
+    pub fn timings(&self) -> PhaseTimings {
+        self.timings
+    }
+
+    /// Zeroes [`timings`](Self::timings).
+    pub fn reset_timings(&mut self) {
+        self.timings = PhaseTimings::default();
+    }
+
+    /// Evaluates densities, pressures and accelerations for the current state if they are stale
+    /// (after a symplectic Euler step). The next step reuses the evaluation, so this costs nothing
+    /// over a run that reports every frame.
+    pub fn refresh(&mut self) {
+        if !self.evaluated {
+            self.evaluate();
+        }
+    }
+
+    /// The largest density error maxᵢ |ρᵢ/ρ₀ − 1| over fluid particles, as of the last evaluation.
+    pub fn max_density_error(&self) -> f64 {
+        let r0 = self.params.rest_density;
+        self.densities()
+            .par_iter()
+            .map(|r| (r / r0 - 1.0).abs())
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// Kinetic energy ½ m Σ |vᵢ|² of the fluid (J, or J/m in 2D), summed in index order.
+    pub fn kinetic_energy(&self) -> f64 {
+        0.5 * self.mass
+            * self
+                .velocities()
+                .iter()
+                .map(|v| v.norm_squared())
+                .sum::<f64>()
+    }
+
+    /// The largest fluid speed (m/s).
+    pub fn max_speed(&self) -> f64 {
+        self.velocities()
+            .par_iter()
+            .map(|v| v.norm())
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// The front along `axis`: the largest coordinate over fluid particles with at least
+    /// `min_neighbours` fluid neighbours within the kernel's support (so that spray is excluded);
+    /// `None` if no particle has that many. SCENES.md's dam-break front is `front(0, 3)`.
+    ///
+    /// # Panics
+    /// If `axis` ≥ `D`.
+    pub fn front(&mut self, axis: usize, min_neighbours: usize) -> Option<f64> {
+        assert!(axis < D, "axis {axis} out of range");
+        self.refresh();
+        let support2 = self.kernel.support_radius().powi(2);
+        let nf = self.fluid_count as u32;
+        let grid = &self.grid;
+        let sorted = &self.sorted;
+        let order = grid.order();
+        (0..order.len())
+            .into_par_iter()
+            .filter(|&k| order[k] < nf)
+            .filter_map(|k| {
+                let x = sorted.positions[k];
+                let mut count = 0usize;
+                grid.for_each_candidate_run(&x, |run| {
+                    for s in run {
+                        if s != k
+                            && order[s] < nf
+                            && (x - sorted.positions[s]).norm_squared() < support2
+                        {
+                            count += 1;
+                        }
+                    }
+                });
+                (count >= min_neighbours).then_some(x[axis])
+            })
+            .reduce_with(f64::max)
+    }
+
+    /// The stability bound min(C·h/(c₀ + |v|max), f·√(h/|a|max)) (s) for the current velocities and
+    /// the last evaluation's accelerations.
+    pub fn stable_step(&self) -> f64 {
+        let p = &self.params;
+        let h = p.smoothing_length;
+        let v_max = self.max_speed();
+        let a_max = self
+            .accelerations()
+            .par_iter()
+            .map(|a| a.norm())
+            .reduce(|| 0.0, f64::max);
+        let cfl = p.courant * h / (p.sound_speed + v_max);
+        let force = if a_max > 0.0 {
+            p.force_factor * (h / a_max).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        cfl.min(force)
+    }
+
+    /// The acoustic step C·h/c₀ (s): the stable step of a fluid at rest.
+    pub fn acoustic_step(&self) -> f64 {
+        self.params.courant * self.params.smoothing_length / self.params.sound_speed
+    }
+
+    /// Takes one step: the stable step, or the fixed step if one is set.
+    ///
+    /// # Errors
+    /// [`SphError::StepAboveBound`] if the fixed step exceeds the bound; [`SphError::StepCollapsed`];
+    /// [`SphError::LeftDomain`] or [`SphError::NonFiniteState`] if the step would move a fluid
+    /// particle out of the domain (with boundary-particle walls) or make a value non-finite, in
+    /// which case no particle has moved.
+    pub fn step(&mut self) -> Result<StepReport, SphError> {
+        self.step_at_most(f64::INFINITY)
+    }
+
+    /// Steps until [`time`](Self::time) reaches `t_end` (s), shortening the last step to land on
+    /// it exactly. Does nothing if `t_end` ≤ the current time.
+    ///
+    /// # Errors
+    /// As [`step`](Self::step); the steps before the failing one are kept.
+    pub fn advance_to(&mut self, t_end: f64) -> Result<AdvanceReport, SphError> {
+        if !t_end.is_finite() {
+            return Err(SphError::InvalidParameter {
+                name: "end time",
+                value: t_end,
+                allowed: "finite (s)",
+            });
+        }
+        let mut report = AdvanceReport {
+            steps: 0,
+            min_dt: f64::INFINITY,
+            max_dt: 0.0,
+        };
+        // Remainders below this are rounding, not time left.
+        let slack = 1e-9 * self.acoustic_step();
+        let mut last_shortened = None;
+        while t_end - self.time > slack {
+            let remaining = t_end - self.time;
+            let step = self.step_at_most(remaining)?;
+            report.steps += 1;
+            if step.dt == remaining && step.dt < step.bound {
+                self.time = t_end;
+                last_shortened = Some(step.dt);
+                continue;
+            }
+            report.min_dt = report.min_dt.min(step.dt);
+            report.max_dt = report.max_dt.max(step.dt);
+        }
+        if let (Some(dt), true) = (last_shortened, report.max_dt == 0.0) {
+            report.min_dt = dt;
+            report.max_dt = dt;
+        }
+        Ok(report)
+    }
+
+    fn step_at_most(&mut self, max_dt: f64) -> Result<StepReport, SphError> {
+        self.refresh();
+        let start = Instant::now();
+        let bound = self.stable_step();
+        let acoustic = self.acoustic_step();
+        if bound < COLLAPSE_FRACTION * acoustic {
+            return Err(SphError::StepCollapsed {
+                bound,
+                acoustic,
+                time: self.time,
+            });
+        }
+        let dt = match self.params.fixed_step {
+            Some(dt) if dt > bound => {
+                return Err(SphError::StepAboveBound {
+                    step: dt,
+                    bound,
+                    time: self.time,
+                })
+            }
+            Some(dt) => dt,
+            None => bound,
+        }
+        .min(max_dt);
+        let kick = match self.params.integrator {
+            Integrator::SymplecticEuler => dt,
+            Integrator::Leapfrog => 0.5 * dt,
+        };
+        self.check_candidate(dt, kick)?;
+        let continuity = self.params.density == DensityMethod::Continuity;
+        if continuity {
+            self.timings.integration += start.elapsed();
+            self.continuity_rates(kick);
+            let bad = self
+                .densities
+                .par_iter()
+                .zip(self.density_rates.par_iter())
+                .position_first(|(r, d)| {
+                    let r = r + dt * d;
+                    !(r.is_finite() && r > 0.0)
+                });
+            if let Some(i) = bad {
+                let r = self.densities[i] + dt * self.density_rates[i];
+                return Err(self.non_finite("density", i, Some(r)));
+            }
+        }
+        let start = Instant::now();
+
+        let nf = self.fluid_count;
+        let clamp = self.walls == Walls::Clamp;
+        let (lo, hi) = (self.domain_min, self.domain_max);
+        self.velocities[..nf]
+            .par_iter_mut()
+            .zip(self.positions[..nf].par_iter_mut())
+            .zip(self.accelerations[..nf].par_iter())
+            .for_each(|((v, x), a)| {
+                *v += a * kick;
+                *x += *v * dt;
+                if clamp {
+                    for axis in 0..D {
+                        if x[axis] < lo[axis] {
+                            x[axis] = lo[axis];
+                            v[axis] = 0.0;
+                        } else if x[axis] > hi[axis] {
+                            x[axis] = hi[axis];
+                            v[axis] = 0.0;
+                        }
+                    }
+                }
+            });
+        if continuity {
+            self.densities
+                .par_iter_mut()
+                .zip(self.density_rates.par_iter())
+                .for_each(|(r, d)| *r += dt * d);
+        }
+        self.evaluated = false;
+        self.timings.integration += start.elapsed();
+        if self.params.integrator == Integrator::Leapfrog {
+            self.evaluate();
+            let second = Instant::now();
+            self.velocities[..nf]
+                .par_iter_mut()
+                .zip(self.accelerations[..nf].par_iter())
+                .for_each(|(v, a)| *v += a * kick);
+            let bad_velocity = self.velocities[..nf]
+                .par_iter()
+                .position_first(|v| finite(v).is_some());
+            self.timings.integration += second.elapsed();
+            if let Some(i) = bad_velocity {
+                return Err(self.non_finite("velocity", i, finite(&self.velocities[i])));
+            }
+        }
+        self.time += dt;
+        self.steps += 1;
+        Ok(StepReport { dt, bound })
+    }
+
+    fn non_finite(&self, what: &'static str, index: usize, value: Option<f64>) -> SphError {
+        SphError::NonFiniteState {
+            what,
+            index,
+            value: value.unwrap_or(f64::NAN),
+            step: self.steps + 1,
+            time: self.time,
+        }
+    }
+
+    /// Checks, before anything moves, that the kick by `kick` and drift by `dt` keep every fluid
+    /// particle finite and (with boundary-particle walls) in the domain.
+    fn check_candidate(&self, dt: f64, kick: f64) -> Result<(), SphError> {
+        let nf = self.fluid_count;
+        let keep_inside = self.walls == Walls::BoundaryParticles;
+        let (lo, hi) = (self.domain_min, self.domain_max);
+        let bad = (0..nf).into_par_iter().position_first(|i| {
+            let v = self.velocities[i] + self.accelerations[i] * kick;
+            let x = self.positions[i] + v * dt;
+            finite(&v).is_some()
+                || finite(&x).is_some()
+                || (keep_inside && (0..D).any(|a| x[a] < lo[a] || x[a] > hi[a]))
+        });
+        if let Some(i) = bad {
+            let v = self.velocities[i] + self.accelerations[i] * kick;
+            let x = self.positions[i] + v * dt;
+            return Err(match (finite(&v), finite(&x)) {
+                (Some(value), _) => self.non_finite("velocity", i, Some(value)),
+                (None, Some(value)) => self.non_finite("position", i, Some(value)),
+                (None, None) => SphError::LeftDomain {
+                    index: i,
+                    position: x.iter().copied().collect(),
+                    step: self.steps + 1,
+                    time: self.time,
+                },
+            });
+        }
+        Ok(())
+    }
+
+    /// The Tait pressure of density `rho`, clamped at 0 where negative pressures are not wanted.
+    #[inline]
+    fn pressure(params: &FluidParams<D>, stiffness: f64, rho: f64, clamp: bool) -> f64 {
+        let ratio = rho / params.rest_density;
+        let power = if params.gamma == 7.0 {
+            let r2 = ratio * ratio;
+            r2 * r2 * r2 * ratio
+        } else {
+            ratio.powf(params.gamma)
+        };
+        let p = stiffness * (power - 1.0);
+        if clamp {
+            p.max(0.0)
+        } else {
+            p
+        }
+    }
+
+    /// The continuity equation's rates dρᵢ/dt = Σⱼ m (vᵢ' − vⱼ')·∇ᵢWᵢⱼ at the evaluated positions for
+    /// the kicked velocities v' = v + `kick`·a, for every particle, into `density_rates`. Using the
+    /// kicked velocities makes (x, ρ) move together with the new velocity, as symplectic Euler and
+    /// leapfrog need: with the old ones the acoustic waves grow without bound.
+    fn continuity_rates(&mut self, kick: f64) {
+        let start = Instant::now();
+        let kernel = self.kernel;
+        let support2 = kernel.support_radius().powi(2);
+        let m = self.mass;
+        let grid = &self.grid;
+        let order = grid.order();
+        let s = &mut self.sorted;
+        let (velocities, accelerations) = (&self.velocities, &self.accelerations);
+        s.velocities
+            .par_iter_mut()
+            .zip(order.par_iter())
+            .for_each(|(v, &i)| *v = velocities[i as usize] + accelerations[i as usize] * kick);
+        let (sx, sv) = (&s.positions, &s.velocities);
+        s.density_rates
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, rate)| {
+                let xi = sx[k];
+                let vi = sv[k];
+                let mut d = 0.0;
+                grid.for_each_candidate_run(&xi, |run| {
+                    for j in run {
+                        let rij = xi - sx[j];
+                        let r2 = rij.norm_squared();
+                        if r2 >= support2 || j == k {
+                            continue;
+                        }
+                        let vij = vi - sv[j];
+                        d += m * kernel.derivative_over_r(r2.sqrt()) * vij.dot(&rij);
+                    }
+                });
+                *rate = d;
+            });
+        let rank = &s.rank;
+        self.density_rates
+            .par_iter_mut()
+            .zip(rank.par_iter())
+            .for_each(|(d, &k)| *d = s.density_rates[k as usize]);
+        self.timings.density += start.elapsed();
+    }
+
+    /// Rebuilds the grid and evaluates densities (summation), pressures and accelerations for the
+    /// current positions, velocities and densities.
+    fn evaluate(&mut self) {
+        let t0 = Instant::now();
+        let n = self.positions.len();
+        let nf = self.fluid_count as u32;
+        self.grid.rebuild(&self.positions);
+        let s = &mut self.sorted;
+        s.positions.resize(n, SVector::zeros());
+        s.velocities.resize(n, SVector::zeros());
+        s.densities.resize(n, 0.0);
+        s.pressures.resize(n, 0.0);
+        s.accelerations.resize(n, SVector::zeros());
+        s.density_rates.resize(n, 0.0);
+        s.rank.resize(n, 0);
+        let order = self.grid.order();
+        let (positions, velocities, densities) =
+            (&self.positions, &self.velocities, &self.densities);
+        s.positions
+            .par_iter_mut()
+            .zip(s.velocities.par_iter_mut())
+            .zip(s.densities.par_iter_mut())
+            .zip(order.par_iter())
+            .for_each(|(((x, v), r), &i)| {
+                *x = positions[i as usize];
+                *v = velocities[i as usize];
+                *r = densities[i as usize];
+            });
+        for (k, &i) in order.iter().enumerate() {
+            s.rank[i as usize] = k as u32;
+        }
+        let t1 = Instant::now();
+
+        let params = self.params;
+        let kernel = self.kernel;
+        let grid = &self.grid;
+        let support2 = kernel.support_radius().powi(2);
+        let m = self.mass;
+        let summation = params.density == DensityMethod::Summation;
+        if summation {
+            let sp = &s.positions;
+            s.densities.par_iter_mut().enumerate().for_each(|(k, rho)| {
+                let x = sp[k];
+                let mut sum = 0.0;
+                grid.for_each_candidate_run(&x, |run| {
+                    for y in &sp[run] {
+                        let r2 = (x - y).norm_squared();
+                        if r2 < support2 {
+                            sum += kernel.value(r2.sqrt());
+                        }
+                    }
+                });
+                *rho = m * sum;
+            });
+        }
+        let b = params.tait_stiffness();
+        s.pressures
+            .par_iter_mut()
+            .zip(s.densities.par_iter())
+            .zip(order.par_iter())
+            .for_each(|((p, &r), &i)| *p = Self::pressure(&params, b, r, summation || i >= nf));
+        let t2 = Instant::now();
+
+        let h = params.smoothing_length;
+        let eta2 = 0.01 * h * h;
+        let alpha_c = params.viscosity_alpha * params.sound_speed;
+        let g = params.gravity;
+        let (sx, sv, sr, sp) = (&s.positions, &s.velocities, &s.densities, &s.pressures);
+        s.accelerations
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, acc)| {
+                if order[k] >= nf {
+                    *acc = SVector::zeros();
+                    return;
+                }
+                let (xi, vi, ri) = (sx[k], sv[k], sr[k]);
+                let pi = sp[k] / (ri * ri);
+                let mut a = SVector::<f64, D>::zeros();
+                grid.for_each_candidate_run(&xi, |run| {
+                    for j in run {
+                        let rij = xi - sx[j];
+                        let r2 = rij.norm_squared();
+                        if r2 >= support2 || j == k {
+                            continue;
+                        }
+                        let grad = rij * kernel.derivative_over_r(r2.sqrt());
+                        let rj = sr[j];
+                        let mut coefficient = pi + sp[j] / (rj * rj);
+                        let approach = (vi - sv[j]).dot(&rij);
+                        if approach < 0.0 {
+                            let mu = h * approach / (r2 + eta2);
+                            coefficient -= alpha_c * mu / (0.5 * (ri + rj));
+                        }
+                        a -= grad * (m * coefficient);
+                    }
+                });
+                *acc = a + g;
+            });
+        let t3 = Instant::now();
+
+        let rank = &s.rank;
+        self.accelerations
+            .par_iter_mut()
+            .zip(self.pressures.par_iter_mut())
+            .zip(self.densities.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, ((a, p), r))| {
+                let k = rank[i] as usize;
+                *a = s.accelerations[k];
+                *p = s.pressures[k];
+                if summation {
+                    *r = s.densities[k];
+                }
+            });
+        self.evaluated = true;
+        let t4 = Instant::now();
+        self.timings.neighbour_search += (t1 - t0) + (t4 - t3);
+        self.timings.density += t2 - t1;
+        self.timings.forces += t3 - t2;
+        self.timings.evaluations += 1;
+    }
+}
