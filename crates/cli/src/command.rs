@@ -43,6 +43,8 @@ enum Command {
     Run(RunArgs),
     /// Speed against error: time solvers on one backward Euler step and measure their errors.
     Bench(crate::bench::BenchArgs),
+    /// Seed 004's interactive 2D editor, in a window or replayed headless from an event script.
+    Edit(crate::edit_command::EditArgs),
 }
 
 #[derive(clap::Args, Default)]
@@ -136,6 +138,8 @@ enum CliError {
     Argument { name: &'static str, reason: String },
     #[error(transparent)]
     Bench(#[from] crate::bench::BenchError),
+    #[error(transparent)]
+    Edit(#[from] crate::edit_command::EditError),
 }
 
 /// Parses the command line, runs the command and reports any error on standard error.
@@ -150,6 +154,7 @@ pub fn main() -> ExitCode {
         }
         Some(Command::Run(args)) => run(&args),
         Some(Command::Bench(args)) => crate::bench::run_command(&args).map_err(CliError::from),
+        Some(Command::Edit(args)) => crate::edit_command::run(&args).map_err(CliError::from),
         None => run(&RunArgs {
             scene: DEFAULT_SCENE.into(),
             out: "out".into(),

@@ -12,6 +12,7 @@
 
 pub mod bench;
 mod command;
+pub mod edit_command;
 pub mod output;
 
 pub use command::main;

@@ -1,4 +1,70 @@
 //! # hooke-editor
 //!
-//! The interactive 2D mass-spring editor of seed 004 (SPEC §7) as a deterministic state machine.
+//! The interactive 2D mass-spring editor of seed 004 (SPEC §7; SCENES.md seed-2d) as a
+//! deterministic state machine, drawn into a pixel buffer, shown in a window or replayed headless.
+//!
+//! - [`Editor`]: the model (particles, pins, springs, Young's modulus, drag, dashpot, integrator)
+//!   and the simulation built from it. [`Editor::handle`] applies an [`Event`];
+//!   [`Editor::advance`] simulates one frame of fixed substeps. There is no clock inside, so a
+//!   replay of the same events gives the same frames bit for bit.
+//! - [`Renderer`]: draws an editor with tiny-skia (walls, springs coloured by strain, particles,
+//!   pinned ones marked, a text overlay) and writes PNG frames.
+//! - [`Script`]: a recorded event script (`EVENTS.json`) and its headless replay; [`StateRecord`]
+//!   is what `--state-out` writes.
+//! - `window` (cargo feature `window`): the minifb window that feeds the editor its events.
+//!
+//! ```
+//! use hooke_editor::{Editor, EditorParams, Event, Key, Renderer};
+//!
+//! let mut editor = Editor::seed(EditorParams::default())?;
+//! editor.handle(Event::Key { key: Key::I, shift: false })?; // explicit Euler next
+//! editor.advance();
+//! let mut renderer = Renderer::new(128)?;
+//! let frame = renderer.render(&editor, None);
+//! assert_eq!(frame.width(), 128);
+//! # Ok::<(), hooke_editor::EditorError>(())
+//! ```
 #![deny(missing_docs)]
+
+mod draw;
+mod editor;
+mod error;
+mod event;
+mod params;
+mod replay;
+pub mod scene_file;
+#[cfg(feature = "window")]
+pub mod window;
+
+pub use draw::{to_0rgb, Renderer, FRAME_SIZES, FULL_STRAIN};
+pub use editor::{Editor, FrameStats, ModelSpring, Outcome, Vec2};
+pub use error::EditorError;
+pub use event::{Event, Key};
+pub use params::{EditorParams, IntegratorChoice, MAX_PARTICLES, MAX_SUBSTEPS};
+pub use replay::{Script, ScriptEvent, StateRecord, MAX_SCRIPT_FRAMES};
+
+use std::path::Path;
+
+/// Write `bytes` to `path` through a temporary file in the same directory and a rename, so that
+/// the file is either the old one or complete.
+///
+/// # Errors
+/// [`EditorError::Write`] naming the file.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), EditorError> {
+    let write_error = |reason: String| EditorError::Write {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| write_error("not a file name".into()))?;
+    let mut temporary_name = std::ffi::OsString::from(".");
+    temporary_name.push(name);
+    temporary_name.push(".tmp");
+    let temporary = path.with_file_name(temporary_name);
+    std::fs::write(&temporary, bytes).map_err(|e| write_error(e.to_string()))?;
+    std::fs::rename(&temporary, path).map_err(|e| {
+        let _ = std::fs::remove_file(&temporary);
+        write_error(e.to_string())
+    })
+}

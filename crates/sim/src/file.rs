@@ -5,12 +5,17 @@
 //! name = "cloth-40"
 //!
 //! [mesh]
-//! generator = "cloth"      # "cloth" (n), "beam" (r) or "seed-2d"; or file = "path" (OBJ, STL, MSH, TetGen)
+//! generator = "cloth"      # "cloth" (n), "beam" (r), "seed-2d" or "particles"; or file = "path" (OBJ, STL, MSH, TetGen)
 //! n = 40
 //! stiffness = 1000.0       # N/m
 //! # bending = "interior-edges"              (triangle files only)
 //! # mass = { total = 1.0 }                  (kg, spread evenly), or
 //! # mass = { density = 1000.0, thickness = 0.001 }   (kg/m³, m)
+//! # "particles" (what `hooke edit` saves) lists the graph itself, in 2D or 3D:
+//! # positions = [[0.3, 0.3], [0.3, 0.4]]   # m
+//! # springs = [[0, 1]]                     # particle pairs
+//! # rest_lengths = [0.1]                   # m, one per spring (stiffness applies to every spring)
+//! # particle_mass = 1.0                    # kg, every particle
 //!
 //! [pins]
 //! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
@@ -158,6 +163,10 @@ struct MeshSection {
     stiffness: Option<f64>,
     bending: Option<String>,
     mass: Option<MassSection>,
+    positions: Option<Vec<Vec<f64>>>,
+    springs: Option<Vec<[u32; 2]>>,
+    rest_lengths: Option<Vec<f64>>,
+    particle_mass: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -400,7 +409,18 @@ impl Context<'_> {
                         "`bending` and `mass` apply to mesh files; generators build the scene as SCENES.md defines it",
                     ));
                 }
+                let graph_keys = m.positions.is_some()
+                    || m.springs.is_some()
+                    || m.rest_lengths.is_some()
+                    || m.particle_mass.is_some();
+                if graph_keys && generator != "particles" {
+                    return Err(self.invalid(
+                        "mesh",
+                        "`positions`, `springs`, `rest_lengths` and `particle_mass` apply to generator \"particles\"",
+                    ));
+                }
                 match generator.as_str() {
+                    "particles" => self.particles(m),
                     "cloth" => {
                         let n = m.n.ok_or_else(|| self.invalid("mesh.n", "missing: cloth needs n (vertices per side)"))?;
                         generators::cloth(n, self.stiffness(m)?)
@@ -425,7 +445,7 @@ impl Context<'_> {
                     }
                     other => Err(self.invalid(
                         "mesh.generator",
-                        format!("unknown generator {other:?}; expected \"cloth\", \"beam\" or \"seed-2d\""),
+                        format!("unknown generator {other:?}; expected \"cloth\", \"beam\", \"seed-2d\" or \"particles\""),
                     )),
                 }
             }
@@ -476,6 +496,74 @@ impl Context<'_> {
                 .map_err(|e| mesh_err("mesh", e))
             }
         }
+    }
+
+    /// The "particles" generator: the graph as listed (2D or 3D, by the positions' length).
+    fn particles(&self, m: &MeshSection) -> Result<AnyMesh, SceneFileError> {
+        let missing = |key: &str, what: &str| self.invalid(key, format!("missing: {what}"));
+        let positions = m
+            .positions
+            .as_ref()
+            .ok_or_else(|| missing("mesh.positions", "[[x, y], ..] in m"))?;
+        let pairs = m
+            .springs
+            .as_ref()
+            .ok_or_else(|| missing("mesh.springs", "[[i, j], ..]"))?;
+        let rest = m
+            .rest_lengths
+            .as_ref()
+            .ok_or_else(|| missing("mesh.rest_lengths", "one rest length (m) per spring"))?;
+        let mass = m
+            .particle_mass
+            .ok_or_else(|| missing("mesh.particle_mass", "the mass of every particle, kg"))?;
+        let stiffness = self.stiffness(m)?;
+        if rest.len() != pairs.len() {
+            return Err(self.invalid(
+                "mesh.rest_lengths",
+                format!("{} rest lengths for {} springs", rest.len(), pairs.len()),
+            ));
+        }
+        let springs: Vec<hooke_mesh::Spring> = pairs
+            .iter()
+            .zip(rest)
+            .map(|(&[i, j], &rest_length)| hooke_mesh::Spring {
+                i,
+                j,
+                stiffness,
+                rest_length,
+            })
+            .collect();
+        let dimension = positions.first().map_or(0, Vec::len);
+        let mesh_err = |e: hooke_mesh::MeshError| self.invalid("mesh", e);
+        match dimension {
+            2 => {
+                let points = self.points::<2>(positions)?;
+                SpringMesh::new(points.clone(), vec![mass; points.len()], springs)
+                    .map(AnyMesh::Two)
+                    .map_err(mesh_err)
+            }
+            3 => {
+                let points = self.points::<3>(positions)?;
+                SpringMesh::new(points.clone(), vec![mass; points.len()], springs)
+                    .map(AnyMesh::Three)
+                    .map_err(mesh_err)
+            }
+            other => Err(self.invalid(
+                "mesh.positions",
+                format!("positions need 2 or 3 coordinates each, the first has {other}"),
+            )),
+        }
+    }
+
+    fn points<const D: usize>(
+        &self,
+        positions: &[Vec<f64>],
+    ) -> Result<Vec<SVector<f64, D>>, SceneFileError> {
+        positions
+            .iter()
+            .enumerate()
+            .map(|(v, p)| self.vector::<D>(&format!("mesh.positions[{v}]"), p))
+            .collect()
     }
 
     fn setup<const D: usize>(
@@ -738,6 +826,62 @@ steps = 2
             AnySetup::Three(s) => Ok(s),
             AnySetup::Two(_) => unreachable!(),
         }
+    }
+
+    #[test]
+    fn the_particles_generator_reads_a_2d_graph_and_names_bad_keys() {
+        let text = r#"
+[mesh]
+generator = "particles"
+positions = [[0.3, 0.3], [0.3, 0.4], [0.4, 0.4]]
+springs = [[0, 1], [0, 2], [1, 2]]
+rest_lengths = [0.1, 0.1, 0.12]
+particle_mass = 2.0
+stiffness = 1e4
+[pins]
+vertices = [2]
+[integrator]
+method = "pd"
+time_step = 0.001
+[run]
+steps = 3
+"#;
+        let AnySetup::Two(setup) = parse_scene(text, Path::new("p.toml")).unwrap().setup else {
+            panic!("a 2D graph gives a 2D scene");
+        };
+        let mesh = setup.scene.mesh();
+        assert_eq!(mesh.positions()[1], SVector::<f64, 2>::new(0.3, 0.4));
+        assert_eq!(mesh.masses(), &[2.0, 2.0, 2.0]);
+        assert_eq!(mesh.springs()[2].rest_length, 0.12);
+        assert!(mesh.springs().iter().all(|s| s.stiffness == 1e4));
+        assert_eq!(setup.scene.pinned(), &[2]);
+        for (change, key) in [
+            ("rest_lengths = [0.1, 0.1, 0.12]", "mesh.rest_lengths"),
+            (
+                "positions = [[0.3, 0.3], [0.3, 0.4], [0.4, 0.4]]",
+                "mesh.positions",
+            ),
+        ] {
+            let broken = text.replace(
+                change,
+                match key {
+                    "mesh.rest_lengths" => "rest_lengths = [0.1]",
+                    _ => "positions = [[0.3], [0.3], [0.4]]",
+                },
+            );
+            let err = parse_scene(&broken, Path::new("p.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(key), "{err}");
+        }
+        let stray = BASE.replace("n = 4", "n = 4\nparticle_mass = 1.0");
+        let err = parse_scene(
+            &format!("{stray}[integrator]\nmethod = \"newton\"\ntime_step = 0.1\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("particles"), "{err}");
     }
 
     #[test]

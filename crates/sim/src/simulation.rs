@@ -264,6 +264,42 @@ impl<const D: usize> Simulation<D> {
         self.implicit.as_ref().and_then(|i| i.factor_time())
     }
 
+    /// Replace the positions (m) and velocities (m/s) of every vertex between two steps, keeping the
+    /// scene, the time and every factorisation and workspace: an interactive editor moves a particle
+    /// or gives the particles an impulse (seed 004's right-click pull) without rebuilding its
+    /// integrator. Static pinned vertices are held where `positions` puts them from then on;
+    /// vertices on a pin path keep following their path. Copies; allocates nothing.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] if a slice's length is not the mesh's vertex count, and
+    /// [`SimError::NonFinite`] naming the first NaN or infinite value; the state is then unchanged.
+    pub fn set_motion(
+        &mut self,
+        positions: &[SVector<f64, D>],
+        velocities: &[SVector<f64, D>],
+    ) -> Result<(), SimError> {
+        let n = self.state.positions.len();
+        for (quantity, values) in [("position", positions), ("velocity", velocities)] {
+            if values.len() != n {
+                return Err(SimError::invalid(
+                    format!("{quantity} count"),
+                    values.len(),
+                    format!("the mesh has {n} vertices"),
+                ));
+            }
+            if let Some(vertex) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(SimError::NonFinite {
+                    step: self.steps_taken,
+                    vertex,
+                    quantity,
+                });
+            }
+        }
+        self.state.positions.copy_from_slice(positions);
+        self.state.velocities.copy_from_slice(velocities);
+        Ok(())
+    }
+
     /// Write the pinned positions at time `t` into `self.next_pinned` (static pins: where they are).
     fn pinned_targets(&mut self, t: f64) {
         for &v in self.scene.pinned() {

@@ -1,0 +1,140 @@
+//! `hooke edit`: seed 004's interactive 2D editor in a window, or replayed headless from an event
+//! script (`--replay EVENTS.json --frames DIR`), which is what tests and CI use.
+
+use std::path::{Path, PathBuf};
+
+use hooke_editor::{Editor, EditorError, EditorParams, Renderer, Script, StateRecord};
+
+/// `hooke edit` arguments.
+#[derive(clap::Args, Debug)]
+pub struct EditArgs {
+    /// A 2D scene file to open (as `hooke run` reads it; `s` in the editor saves one). Without it
+    /// the editor starts with seed 004's three particles.
+    pub file: Option<PathBuf>,
+    /// Replay this event script headless instead of opening a window:
+    /// {"frames": N, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5}, ..]}.
+    #[arg(long, value_name = "EVENTS.json", requires = "frames")]
+    pub replay: Option<PathBuf>,
+    /// With --replay: write DIR/frame_NNNN.png (created if missing).
+    #[arg(long, value_name = "DIR", requires = "replay")]
+    pub frames: Option<PathBuf>,
+    /// With --replay: write every K-th frame (frames 0, K, 2K, ..).
+    #[arg(long, value_name = "K", default_value_t = 1, requires = "replay")]
+    pub every: usize,
+    /// Frame (and window) side in pixels, 64 to 4096.
+    #[arg(long, value_name = "PIXELS", default_value_t = 512)]
+    pub size: u32,
+    /// With --replay: write the final state (particles, pins, springs, settings) as JSON.
+    #[arg(long, value_name = "STATE.json", requires = "replay")]
+    pub state_out: Option<PathBuf>,
+    /// Where `s` saves the scene (window), or where a script's `s` saves it (replay).
+    #[arg(long, value_name = "FILE.toml", default_value = "edited.toml")]
+    pub save: PathBuf,
+}
+
+/// What `hooke edit` can fail with.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum EditError {
+    /// The editor refused something (a scene, an event, a frame size, a write).
+    #[error(transparent)]
+    Editor(#[from] EditorError),
+    /// A file could not be read or a directory made.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The event script is not valid JSON of the expected shape.
+    #[error("{}: {source}", path.display())]
+    Script {
+        /// The script.
+        path: PathBuf,
+        /// The parser's message (line, column, field).
+        source: serde_json::Error,
+    },
+    /// An argument out of range.
+    #[error("invalid --{name}: {reason}")]
+    Argument {
+        /// The flag.
+        name: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The window could not run.
+    #[error(transparent)]
+    Window(#[from] hooke_editor::window::WindowError),
+}
+
+/// Run `hooke edit`.
+///
+/// # Errors
+/// [`EditError`].
+pub fn run(args: &EditArgs) -> Result<(), EditError> {
+    let params = EditorParams::default();
+    let mut editor = match &args.file {
+        Some(path) => Editor::open(params, path)?,
+        None => Editor::seed(params)?,
+    };
+    match (&args.replay, &args.frames) {
+        (Some(script), Some(frames)) => replay(args, &mut editor, script, frames),
+        _ => {
+            let settings = hooke_editor::window::WindowSettings {
+                size: args.size,
+                save_path: args.save.clone(),
+                ..Default::default()
+            };
+            hooke_editor::window::run(&mut editor, &settings)?;
+            Ok(())
+        }
+    }
+}
+
+fn replay(
+    args: &EditArgs,
+    editor: &mut Editor,
+    script_path: &Path,
+    frames: &Path,
+) -> Result<(), EditError> {
+    if args.every == 0 {
+        return Err(EditError::Argument {
+            name: "every",
+            reason: "must be at least 1".into(),
+        });
+    }
+    let text = std::fs::read_to_string(script_path).map_err(|source| EditError::Io {
+        path: script_path.to_path_buf(),
+        source,
+    })?;
+    let script: Script = serde_json::from_str(&text).map_err(|source| EditError::Script {
+        path: script_path.to_path_buf(),
+        source,
+    })?;
+    let script = script.validated()?;
+    let mut renderer = Renderer::new(args.size)?;
+    std::fs::create_dir_all(frames).map_err(|source| EditError::Io {
+        path: frames.to_path_buf(),
+        source,
+    })?;
+    script.replay(editor, |frame, editor, save| {
+        if save {
+            editor.save_scene(&args.save)?;
+        }
+        if frame % args.every == 0 {
+            renderer.render(editor, None);
+            renderer.save_png(&frames.join(format!("frame_{frame:04}.png")))?;
+        }
+        Ok(())
+    })?;
+    if let Some(path) = &args.state_out {
+        let record = StateRecord::of(editor);
+        let json = serde_json::to_string_pretty(&record).expect("a state record serialises");
+        hooke_editor::write_atomically(path, json.as_bytes())?;
+    }
+    if let Some(failure) = editor.failure() {
+        eprintln!("note: the replay ended paused on a failure: {failure}");
+    }
+    Ok(())
+}
