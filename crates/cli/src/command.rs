@@ -44,6 +44,8 @@ enum Command {
     Run(RunArgs),
     /// Speed against error: time solvers on one backward Euler step and measure their errors.
     Bench(crate::bench::BenchArgs),
+    /// Tetrahedral meshes: fill a closed surface (tetrahedralize), report a mesh's quality.
+    Mesh(crate::mesh_command::MeshArgs),
 }
 
 #[derive(clap::Args, Default)]
@@ -137,6 +139,8 @@ enum CliError {
     Argument { name: &'static str, reason: String },
     #[error(transparent)]
     Bench(#[from] crate::bench::BenchError),
+    #[error(transparent)]
+    MeshCommand(#[from] crate::mesh_command::MeshCommandError),
 }
 
 /// Parses the command line, runs the command and reports any error on standard error.
@@ -151,6 +155,7 @@ pub fn main() -> ExitCode {
         }
         Some(Command::Run(args)) => run(&args),
         Some(Command::Bench(args)) => crate::bench::run_command(&args).map_err(CliError::from),
+        Some(Command::Mesh(args)) => crate::mesh_command::run(&args).map_err(CliError::from),
         None => run(&RunArgs {
             scene: DEFAULT_SCENE.into(),
             out: "out".into(),

@@ -12,6 +12,7 @@
 
 pub mod bench;
 mod command;
+mod mesh_command;
 pub mod output;
 
 pub use command::main;

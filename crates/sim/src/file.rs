@@ -11,6 +11,7 @@
 //! # bending = "interior-edges"              (triangle files only)
 //! # mass = { total = 1.0 }                  (kg, spread evenly), or
 //! # mass = { density = 1000.0, thickness = 0.001 }   (kg/m³, m)
+//! # fill = { spacing = 0.01 }              (closed surface files: fill with tetrahedra, lattice spacing m)
 //!
 //! [pins]
 //! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
@@ -158,6 +159,14 @@ struct MeshSection {
     stiffness: Option<f64>,
     bending: Option<String>,
     mass: Option<MassSection>,
+    fill: Option<FillSection>,
+}
+
+/// `fill = { spacing = h }`: fill a closed surface file with tetrahedra (isosurface stuffing).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FillSection {
+    spacing: f64,
 }
 
 #[derive(Deserialize)]
@@ -394,10 +403,10 @@ impl Context<'_> {
             }
             (None, None) => Err(self.invalid("mesh", "missing `generator` or `file`")),
             (Some(generator), None) => {
-                if m.bending.is_some() || m.mass.is_some() {
+                if m.bending.is_some() || m.mass.is_some() || m.fill.is_some() {
                     return Err(self.invalid(
                         "mesh",
-                        "`bending` and `mass` apply to mesh files; generators build the scene as SCENES.md defines it",
+                        "`bending`, `mass` and `fill` apply to mesh files; generators build the scene as SCENES.md defines it",
                     ));
                 }
                 match generator.as_str() {
@@ -459,11 +468,23 @@ impl Context<'_> {
                 };
                 let loaded = read_mesh(&file).map_err(|e| mesh_err("mesh.file", e))?;
                 match loaded {
+                    Mesh::Surface(tri) if m.fill.is_some() => {
+                        if bending != Bending::None {
+                            return Err(self.invalid("mesh.bending", "bending springs apply to triangle meshes only, not to a filled solid"));
+                        }
+                        let spacing = m.fill.as_ref().map_or(0.0, |f| f.spacing);
+                        let stuffed = hooke_mesh::stuffing::fill_surface(&tri, spacing)
+                            .map_err(|e| self.invalid("mesh.fill", e))?;
+                        SpringMesh::from_tetrahedra(&stuffed.mesh, stiffness, mass)
+                    }
                     Mesh::Surface(tri) => {
                         if matches!(mass, MassModel::Density { .. }) && m.mass.as_ref().is_some_and(|s| matches!(s, MassSection::Density { thickness: None, .. })) {
                             return Err(self.invalid("mesh.mass.thickness", "missing: a surface mesh needs a thickness (m) to turn density into mass"));
                         }
                         SpringMesh::from_triangles(&tri, stiffness, bending, mass)
+                    }
+                    Mesh::Volume(_) if m.fill.is_some() => {
+                        return Err(self.invalid("mesh.fill", "fill applies to closed surface files (.obj, .stl); this file is already tetrahedral"));
                     }
                     Mesh::Volume(tet) => {
                         if bending != Bending::None {

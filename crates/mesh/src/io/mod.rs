@@ -36,6 +36,7 @@ mod atomic;
 mod msh;
 mod obj;
 mod stl;
+mod tet_write;
 mod tetgen;
 mod vtk;
 
@@ -43,6 +44,7 @@ pub use atomic::write_atomically;
 pub use msh::{parse_msh, read_msh};
 pub use obj::{parse_obj, read_obj, write_obj};
 pub use stl::{parse_stl, read_stl};
+pub use tet_write::{save_msh, save_tetgen, write_msh, write_tetgen_ele, write_tetgen_node};
 pub use tetgen::{parse_tetgen, read_tetgen};
 pub use vtk::write_vtk;
 
