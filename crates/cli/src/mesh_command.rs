@@ -36,7 +36,7 @@ enum MeshCommand {
         #[arg(long, value_name = "REPORT.json")]
         json: Option<PathBuf>,
     },
-    /// Print the quality report of a tetrahedral mesh (.node/.ele or .msh).
+    /// Print the quality report of a tetrahedral mesh (.vtk, .node/.ele or .msh).
     Quality {
         /// The mesh.
         mesh: PathBuf,
@@ -128,16 +128,16 @@ pub(crate) fn run(args: &MeshArgs) -> Result<(), MeshCommandError> {
             Ok(())
         }
         MeshCommand::Quality { mesh, json } => {
-            let tets = match read_mesh(mesh)? {
-                Mesh::Volume(tets) => tets,
-                Mesh::Surface(_) => {
-                    return Err(MeshCommandError::Input {
+            let tets =
+                match read_mesh(mesh)? {
+                    Mesh::Volume(tets) => tets,
+                    Mesh::Surface(_) => return Err(MeshCommandError::Input {
                         path: mesh.clone(),
-                        what: "a surface: quality needs a tetrahedral mesh (.node/.ele or .msh)"
-                            .into(),
-                    })
-                }
-            };
+                        what:
+                            "a surface: quality needs a tetrahedral mesh (.vtk, .node/.ele or .msh)"
+                                .into(),
+                    }),
+                };
             let report = quality_report(&tets, None);
             print_report(&report);
             if let Some(path) = json {

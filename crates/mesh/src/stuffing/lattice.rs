@@ -19,12 +19,6 @@ pub(crate) struct BccLattice {
 }
 
 impl BccLattice {
-    /// The number of vertices a lattice of `cubes` cubes per axis has.
-    pub(crate) fn vertex_count_for(cubes: [usize; 3]) -> u64 {
-        let [x, y, z] = cubes.map(|c| c as u64);
-        (x + 1) * (y + 1) * (z + 1) + x * y * z
-    }
-
     pub(crate) fn new(origin: Vec3, spacing: f64, cubes: [usize; 3]) -> Self {
         let [x, y, z] = cubes;
         BccLattice {
@@ -148,8 +142,7 @@ mod tests {
             };
             assert_eq!(back, id);
         }
-        // The tetrahedra around red long edges fill the box between the outermost cube centres:
-        // (n - 1) per axis, 12 tetrahedra of volume h³/12 per unit cube.
+        // Every tetrahedron is a BCC tetrahedron of volume h³/12.
         let mut volume = 0.0;
         for red in lattice.black_count() as u32..lattice.vertex_count() as u32 {
             for axis in 0..3 {
@@ -161,8 +154,7 @@ mod tests {
                 }
             }
         }
-        // The union is the box from the first to the last cube centre, plus the half-octahedra
-        // around each red long edge that reach past it: exactly 12·(#red long edges)/12.
+        // Four tetrahedra of h³/12 around each red long edge.
         let red_edges = 2 * 4 * 5 + 3 * 3 * 5 + 3 * 4 * 4;
         assert!((volume - red_edges as f64 / 3.0).abs() < 1e-9, "{volume}");
     }

@@ -196,25 +196,19 @@ pub fn tetrahedralize(
     let [lo, hi] = surface.bounds();
     let extent = hi - lo;
     let cubes_f = extent.map(|e| (e / h).ceil() + 2.0 * PADDING as f64);
-    // Check the size in floating point first: a tiny spacing must not overflow the arithmetic.
-    let estimate = (cubes_f.x + 1.0) * (cubes_f.y + 1.0) * (cubes_f.z + 1.0) * 2.0;
-    if !(estimate < options.max_lattice_vertices as f64 * 2.0 + 16.0) || estimate > u32::MAX as f64
-    {
+    // Vertex indices are u32 with room for the cut points; the count is estimated in floating point
+    // first so that a tiny spacing cannot overflow the integer arithmetic (it saturates to +inf).
+    let limit = options.max_lattice_vertices.min((u32::MAX / 2) as u64);
+    let estimate = (cubes_f.x + 1.0) * (cubes_f.y + 1.0) * (cubes_f.z + 1.0)
+        + cubes_f.x * cubes_f.y * cubes_f.z;
+    if estimate.is_nan() || estimate > limit as f64 {
         return Err(StuffingError::LatticeTooLarge {
             spacing: h,
-            vertices: estimate.min(u64::MAX as f64) as u64 / 2,
-            limit: options.max_lattice_vertices.min(u32::MAX as u64 / 2),
+            vertices: estimate as u64,
+            limit,
         });
     }
     let cubes = [cubes_f.x as usize, cubes_f.y as usize, cubes_f.z as usize];
-    let vertices = BccLattice::vertex_count_for(cubes);
-    if vertices > options.max_lattice_vertices || vertices > (u32::MAX / 2) as u64 {
-        return Err(StuffingError::LatticeTooLarge {
-            spacing: h,
-            vertices,
-            limit: options.max_lattice_vertices.min(u32::MAX as u64 / 2),
-        });
-    }
     // Centre the surface's box in the lattice.
     let slack = Vec3::new(cubes[0] as f64, cubes[1] as f64, cubes[2] as f64) * h - extent;
     let lattice = BccLattice::new(lo - slack * 0.5, h, cubes);

@@ -177,11 +177,8 @@ pub(crate) fn fill<L: StencilLattice>(
     let v = |i: usize| tet[i];
     let cut = |i: usize, j: usize| lattice.cut(tet[i], tet[j]);
     match (np, nn) {
-        (0, _) => {
-            if nz == 4 && lattice.keep_zero_tetrahedron(tet) {
-                out.push(tet);
-            }
-        }
+        (0, _) if nz == 4 && lattice.keep_zero_tetrahedron(tet) => out.push(tet),
+        (0, _) => {}
         (_, 0) => out.push(tet),
         (1, 3) => {
             let p = plus[0];
