@@ -45,6 +45,8 @@ enum Command {
     Bench(crate::bench::BenchArgs),
     /// Seed 004's interactive 2D editor, in a window or replayed headless from an event script.
     Edit(crate::edit_command::EditArgs),
+    /// Tetrahedral meshes: fill a closed surface (tetrahedralize), report a mesh's quality.
+    Mesh(crate::mesh_command::MeshArgs),
 }
 
 #[derive(clap::Args, Default)]
@@ -140,6 +142,7 @@ enum CliError {
     Bench(#[from] crate::bench::BenchError),
     #[error(transparent)]
     Edit(#[from] crate::edit_command::EditError),
+    MeshCommand(#[from] crate::mesh_command::MeshCommandError),
 }
 
 /// Parses the command line, runs the command and reports any error on standard error.
@@ -155,6 +158,7 @@ pub fn main() -> ExitCode {
         Some(Command::Run(args)) => run(&args),
         Some(Command::Bench(args)) => crate::bench::run_command(&args).map_err(CliError::from),
         Some(Command::Edit(args)) => crate::edit_command::run(&args).map_err(CliError::from),
+        Some(Command::Mesh(args)) => crate::mesh_command::run(&args).map_err(CliError::from),
         None => run(&RunArgs {
             scene: DEFAULT_SCENE.into(),
             out: "out".into(),

@@ -13,6 +13,7 @@
 pub mod bench;
 mod command;
 pub mod edit_command;
+mod mesh_command;
 pub mod output;
 
 pub use command::main;

@@ -26,6 +26,7 @@ pub mod io;
 #[cfg(feature = "proptest-support")]
 pub mod proptest_support;
 mod spring_mesh;
+pub mod stuffing;
 
 pub use elements::{
     tetrahedron_signed_volume, triangle_area, TetMesh, TriMesh, Vec3, DEGENERACY_TOLERANCE,

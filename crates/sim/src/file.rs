@@ -16,6 +16,7 @@
 //! # springs = [[0, 1]]                     # particle pairs
 //! # rest_lengths = [0.1]                   # m, one per spring (stiffness applies to every spring)
 //! # particle_mass = 1.0                    # kg, every particle
+//! # fill = { spacing = 0.01 }              (closed surface files: fill with tetrahedra, lattice spacing m)
 //!
 //! [pins]
 //! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
@@ -167,6 +168,14 @@ struct MeshSection {
     springs: Option<Vec<[u32; 2]>>,
     rest_lengths: Option<Vec<f64>>,
     particle_mass: Option<f64>,
+    fill: Option<FillSection>,
+}
+
+/// `fill = { spacing = h }`: fill a closed surface file with tetrahedra (isosurface stuffing).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FillSection {
+    spacing: f64,
 }
 
 #[derive(Deserialize)]
@@ -403,10 +412,10 @@ impl Context<'_> {
             }
             (None, None) => Err(self.invalid("mesh", "missing `generator` or `file`")),
             (Some(generator), None) => {
-                if m.bending.is_some() || m.mass.is_some() {
+                if m.bending.is_some() || m.mass.is_some() || m.fill.is_some() {
                     return Err(self.invalid(
                         "mesh",
-                        "`bending` and `mass` apply to mesh files; generators build the scene as SCENES.md defines it",
+                        "`bending`, `mass` and `fill` apply to mesh files; generators build the scene as SCENES.md defines it",
                     ));
                 }
                 let graph_keys = m.positions.is_some()
@@ -479,11 +488,23 @@ impl Context<'_> {
                 };
                 let loaded = read_mesh(&file).map_err(|e| mesh_err("mesh.file", e))?;
                 match loaded {
+                    Mesh::Surface(tri) if m.fill.is_some() => {
+                        if bending != Bending::None {
+                            return Err(self.invalid("mesh.bending", "bending springs apply to triangle meshes only, not to a filled solid"));
+                        }
+                        let spacing = m.fill.as_ref().map_or(0.0, |f| f.spacing);
+                        let stuffed = hooke_mesh::stuffing::fill_surface(&tri, spacing)
+                            .map_err(|e| self.invalid("mesh.fill", e))?;
+                        SpringMesh::from_tetrahedra(&stuffed.mesh, stiffness, mass)
+                    }
                     Mesh::Surface(tri) => {
                         if matches!(mass, MassModel::Density { .. }) && m.mass.as_ref().is_some_and(|s| matches!(s, MassSection::Density { thickness: None, .. })) {
                             return Err(self.invalid("mesh.mass.thickness", "missing: a surface mesh needs a thickness (m) to turn density into mass"));
                         }
                         SpringMesh::from_triangles(&tri, stiffness, bending, mass)
+                    }
+                    Mesh::Volume(_) if m.fill.is_some() => {
+                        return Err(self.invalid("mesh.fill", "fill applies to closed surface files (.obj, .stl); this file is already tetrahedral"));
                     }
                     Mesh::Volume(tet) => {
                         if bending != Bending::None {

@@ -36,15 +36,19 @@ mod atomic;
 mod msh;
 mod obj;
 mod stl;
+mod tet_write;
 mod tetgen;
 mod vtk;
+mod vtk_read;
 
 pub use atomic::write_atomically;
 pub use msh::{parse_msh, read_msh};
 pub use obj::{parse_obj, read_obj, write_obj};
 pub use stl::{parse_stl, read_stl};
+pub use tet_write::{save_msh, save_tetgen, write_msh, write_tetgen_ele, write_tetgen_node};
 pub use tetgen::{parse_tetgen, read_tetgen};
 pub use vtk::write_vtk;
+pub use vtk_read::{parse_vtk, read_vtk};
 
 /// A mesh read from a file of any supported format: a surface or a volume.
 #[derive(Clone, Debug, PartialEq)]
@@ -56,8 +60,9 @@ pub enum Mesh {
 }
 
 /// Read a mesh file, choosing the reader by the extension (case-insensitive): `.obj` ([`read_obj`]) and
-/// `.stl` ([`read_stl`]) give a [`Mesh::Surface`]; `.msh` ([`read_msh`]) and `.node` or `.ele`
-/// ([`read_tetgen`], which reads both files of the pair) give a [`Mesh::Volume`].
+/// `.stl` ([`read_stl`]) give a [`Mesh::Surface`]; `.msh` ([`read_msh`]), `.node` or `.ele`
+/// ([`read_tetgen`], which reads both files of the pair) and `.vtk` ([`read_vtk`]) give a
+/// [`Mesh::Volume`].
 ///
 /// # Errors
 /// [`MeshError::Parse`] naming the file and the supported extensions if the extension is not one of
@@ -72,12 +77,13 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshError> {
         Some("stl") => read_stl(path).map(Mesh::Surface),
         Some("msh") => read_msh(path).map(Mesh::Volume),
         Some("node" | "ele") => read_tetgen(path).map(Mesh::Volume),
+        Some("vtk") => read_vtk(path).map(Mesh::Volume),
         other => Err(MeshError::Parse {
             path: path.to_path_buf(),
             line: None,
             message: format!(
                 "{}: supported mesh files are .obj and .stl (triangle surfaces), .msh (Gmsh \
-                 tetrahedra) and .node/.ele (TetGen tetrahedra)",
+                 tetrahedra), .node/.ele (TetGen tetrahedra) and .vtk (legacy VTK tetrahedra)",
                 match other {
                     Some(e) => format!("unsupported extension \".{e}\""),
                     None => "no file extension".to_string(),
@@ -291,7 +297,7 @@ mod tests {
 
     #[test]
     fn read_mesh_rejects_unknown_extensions() {
-        for name in ["mesh.ply", "mesh", "mesh.vtk"] {
+        for name in ["mesh.ply", "mesh", "mesh.off"] {
             let e = read_mesh(Path::new(name)).unwrap_err();
             let text = e.to_string();
             assert!(matches!(e, MeshError::Parse { line: None, .. }), "{e:?}");

@@ -1,0 +1,94 @@
+//! The error type of the tetrahedral mesher.
+
+use crate::MeshError;
+
+/// Everything that can stop [`tetrahedralize`](super::tetrahedralize) or
+/// [`ClosedSurface::new`](super::ClosedSurface::new).
+///
+/// Surface checks name the first offending edge (its two vertex indices, in the input's numbering)
+/// and the triangle(s) that use it, so that a user can find the defect in a modelling program.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StuffingError {
+    /// The triangle mesh itself is invalid (empty, a NaN or infinite coordinate, an index out of
+    /// range, a repeated vertex, a zero-area triangle).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// An edge used by only one triangle: the surface has a hole and encloses no volume.
+    #[error("the surface is open: edge {a}–{b} belongs only to triangle {triangle}")]
+    OpenEdge {
+        /// First vertex of the edge.
+        a: usize,
+        /// Second vertex of the edge.
+        b: usize,
+        /// The one triangle that uses it.
+        triangle: usize,
+    },
+    /// An edge used by three or more triangles: the surface is not a 2-manifold there.
+    #[error(
+        "the surface is not manifold: edge {a}–{b} belongs to {count} triangles (the first is {triangle})"
+    )]
+    NonManifoldEdge {
+        /// First vertex of the edge.
+        a: usize,
+        /// Second vertex of the edge.
+        b: usize,
+        /// How many triangles use it (3 or more).
+        count: usize,
+        /// The first triangle (lowest index) that uses it.
+        triangle: usize,
+    },
+    /// Two triangles that share an edge traverse it in the same direction: their normals disagree, so
+    /// the surface has no consistent inside.
+    #[error(
+        "the surface's orientation is inconsistent: triangles {first} and {second} both run edge {a}→{b} the same way"
+    )]
+    InconsistentOrientation {
+        /// The edge's start vertex, as both triangles run it.
+        a: usize,
+        /// The edge's end vertex.
+        b: usize,
+        /// The first triangle.
+        first: usize,
+        /// The second triangle.
+        second: usize,
+    },
+    /// The closed surface encloses (relative to its size) no volume.
+    #[error(
+        "the surface encloses no volume: {volume:e} m³ against {scale:e} m³ for its bounding box"
+    )]
+    ZeroVolume {
+        /// Its enclosed volume (m³), unsigned.
+        volume: f64,
+        /// The volume of its bounding box (m³).
+        scale: f64,
+    },
+    /// A parameter of the mesher is out of its domain.
+    #[error("invalid parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The field's name.
+        name: &'static str,
+        /// Its value, as text.
+        value: String,
+        /// The allowed range.
+        reason: &'static str,
+    },
+    /// The lattice that the spacing asks for is larger than the limit.
+    #[error(
+        "a lattice spacing of {spacing} m over this surface needs {vertices} lattice vertices, more than the limit of {limit} (raise StuffingOptions::max_lattice_vertices or the spacing)"
+    )]
+    LatticeTooLarge {
+        /// The spacing asked for (m).
+        spacing: f64,
+        /// The number of lattice vertices it needs.
+        vertices: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// No lattice vertex falls inside the surface: the spacing is too coarse for so thin a solid.
+    #[error("no tetrahedra: no lattice vertex at spacing {spacing} m lies inside the surface; use a smaller spacing")]
+    NoTetrahedra {
+        /// The spacing used (m).
+        spacing: f64,
+    },
+}

@@ -1,0 +1,249 @@
+//! A closed, consistently oriented triangle surface, checked, turned outward, and wrapped in
+//! parry's triangle mesh for inside tests, closest points and segment crossings.
+
+use std::collections::HashMap;
+
+use parry3d_f64::math::Vector as PVec;
+use parry3d_f64::query::{PointQuery, Ray, RayCast};
+use parry3d_f64::shape::{TriMesh as ParryMesh, TriMeshFlags};
+
+use super::StuffingError;
+use crate::{TriMesh, Vec3};
+
+/// A watertight, 2-manifold, consistently oriented triangle surface with outward normals, ready
+/// for meshing.
+///
+/// Built by [`ClosedSurface::new`], which checks the surface and turns an inside-out one outward
+/// (see [`ClosedSurface::was_inside_out`]). Geometric queries (inside test by angle-weighted
+/// pseudo-normals, closest point, signed distance, segment crossing) are parry3d's, on its BVH.
+pub struct ClosedSurface {
+    surface: TriMesh,
+    shape: ParryMesh,
+    volume: f64,
+    inside_out: bool,
+    bounds: [Vec3; 2],
+}
+
+impl std::fmt::Debug for ClosedSurface {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ClosedSurface")
+            .field("vertices", &self.surface.positions().len())
+            .field("triangles", &self.surface.triangles().len())
+            .field("volume", &self.volume)
+            .field("inside_out", &self.inside_out)
+            .finish()
+    }
+}
+
+fn to_parry(p: &Vec3) -> PVec {
+    PVec::new(p.x, p.y, p.z)
+}
+
+fn from_parry(p: PVec) -> Vec3 {
+    Vec3::new(p.x, p.y, p.z)
+}
+
+/// Check that every edge is shared by exactly two triangles that run it in opposite directions.
+/// The error names the offending edge whose first triangle comes first in the input.
+fn check_closed_manifold(triangles: &[[u32; 3]], renumber: &[u32]) -> Result<(), StuffingError> {
+    // (undirected key, forward?, triangle), sorted so that an edge's uses are adjacent.
+    let mut uses: Vec<(u64, bool, u32)> = Vec::with_capacity(3 * triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        for (p, q) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            let (p, q) = (renumber[p as usize], renumber[q as usize]);
+            let key = ((p.min(q) as u64) << 32) | p.max(q) as u64;
+            uses.push((key, p < q, t as u32));
+        }
+    }
+    uses.sort_unstable();
+    let mut worst: Option<(u32, StuffingError)> = None;
+    let mut start = 0;
+    while start < uses.len() {
+        let mut end = start + 1;
+        while end < uses.len() && uses[end].0 == uses[start].0 {
+            end += 1;
+        }
+        let group = &uses[start..end];
+        let first = group.iter().map(|u| u.2).min().unwrap_or(0);
+        let (lo, hi) = (
+            (group[0].0 >> 32) as usize,
+            (group[0].0 & 0xffff_ffff) as usize,
+        );
+        let error = match group.len() {
+            1 => Some(StuffingError::OpenEdge {
+                a: lo,
+                b: hi,
+                triangle: first as usize,
+            }),
+            2 if group[0].1 == group[1].1 => {
+                let (a, b) = if group[0].1 { (lo, hi) } else { (hi, lo) };
+                Some(StuffingError::InconsistentOrientation {
+                    a,
+                    b,
+                    first: group[0].2.min(group[1].2) as usize,
+                    second: group[0].2.max(group[1].2) as usize,
+                })
+            }
+            2 => None,
+            count => Some(StuffingError::NonManifoldEdge {
+                a: lo,
+                b: hi,
+                count,
+                triangle: first as usize,
+            }),
+        };
+        if let Some(error) = error {
+            if worst.as_ref().is_none_or(|(t, _)| first < *t) {
+                worst = Some((first, error));
+            }
+        }
+        start = end;
+    }
+    match worst {
+        Some((_, error)) => Err(error),
+        None => Ok(()),
+    }
+}
+
+impl ClosedSurface {
+    /// Check a triangle surface and prepare it for meshing.
+    ///
+    /// Vertices with bit-identical coordinates are treated as one (as an STL file needs); indices in
+    /// errors are the first such vertex's index in `mesh`. An inside-out surface (negative enclosed
+    /// volume) is turned outward by reversing every triangle, and
+    /// [`was_inside_out`](Self::was_inside_out) says so.
+    ///
+    /// # Errors
+    /// [`StuffingError::OpenEdge`] (an edge in one triangle), [`StuffingError::NonManifoldEdge`]
+    /// (in three or more), [`StuffingError::InconsistentOrientation`] (two neighbours disagree),
+    /// naming the offending edge whose lowest triangle index is smallest;
+    /// [`StuffingError::ZeroVolume`] for a flat closed surface. Empty input and NaN coordinates are
+    /// refused earlier, by [`TriMesh::new`].
+    pub fn new(mesh: &TriMesh) -> Result<Self, StuffingError> {
+        let positions = mesh.positions();
+        // Weld bit-identical positions: the first index of each position stands for all.
+        let mut first_index: HashMap<[u64; 3], u32> = HashMap::with_capacity(positions.len());
+        let renumber: Vec<u32> = positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                *first_index
+                    .entry([p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+                    .or_insert(i as u32)
+            })
+            .collect();
+        check_closed_manifold(mesh.triangles(), &renumber)?;
+
+        let mut triangles: Vec<[u32; 3]> = mesh
+            .triangles()
+            .iter()
+            .map(|t| t.map(|v| renumber[v as usize]))
+            .collect();
+        let signed_volume: f64 = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| positions[v as usize]);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum();
+        let mut lo = positions[0];
+        let mut hi = positions[0];
+        for p in positions {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let extent = hi - lo;
+        let scale = extent.x * extent.y * extent.z;
+        if signed_volume.abs() <= crate::DEGENERACY_TOLERANCE * extent.norm().powi(3) {
+            return Err(StuffingError::ZeroVolume {
+                volume: signed_volume.abs(),
+                scale,
+            });
+        }
+        let inside_out = signed_volume < 0.0;
+        if inside_out {
+            for t in &mut triangles {
+                t.swap(1, 2);
+            }
+        }
+        let vertices: Vec<PVec> = positions.iter().map(to_parry).collect();
+        let shape = ParryMesh::with_flags(vertices, triangles.clone(), TriMeshFlags::ORIENTED)
+            .map_err(|_| crate::MeshError::NoElements {
+                kind: crate::ElementKind::Triangle,
+            })?;
+        let surface = TriMesh::new(positions.to_vec(), triangles)?;
+        Ok(ClosedSurface {
+            surface,
+            shape,
+            volume: signed_volume.abs(),
+            inside_out,
+            bounds: [lo, hi],
+        })
+    }
+
+    /// The surface, oriented outward (triangles reversed if the input was inside out).
+    pub fn triangle_mesh(&self) -> &TriMesh {
+        &self.surface
+    }
+
+    /// Whether the input was inside out (negative enclosed volume) and has been turned outward.
+    pub fn was_inside_out(&self) -> bool {
+        self.inside_out
+    }
+
+    /// The enclosed volume (m³), positive.
+    pub fn enclosed_volume(&self) -> f64 {
+        self.volume
+    }
+
+    /// The axis-aligned bounding box of the surface's vertices, `[min, max]` (m).
+    pub fn bounds(&self) -> [Vec3; 2] {
+        self.bounds
+    }
+
+    /// Whether `p` lies inside the surface (by the angle-weighted pseudo-normal at its closest
+    /// point; points on the surface may go either way).
+    pub fn contains(&self, p: &Vec3) -> bool {
+        self.shape.project_local_point(to_parry(p), false).is_inside
+    }
+
+    /// The closest point of the surface to `p`.
+    pub fn closest_point(&self, p: &Vec3) -> Vec3 {
+        from_parry(self.shape.project_local_point(to_parry(p), false).point)
+    }
+
+    /// Signed distance from `p` to the surface (m): negative inside, positive outside.
+    pub fn signed_distance(&self, p: &Vec3) -> f64 {
+        let projection = self.shape.project_local_point(to_parry(p), false);
+        let distance = (from_parry(projection.point) - p).norm();
+        if projection.is_inside {
+            -distance
+        } else {
+            distance
+        }
+    }
+
+    /// Where the segment from `inside` (a point inside) to `outside` (a point outside) first leaves
+    /// the solid: the first surface crossing seen from `inside`, found by a ray cast, or by bisection
+    /// on the inside test where round-off makes the ray miss.
+    pub(crate) fn crossing(&self, inside: &Vec3, outside: &Vec3) -> Vec3 {
+        let direction = outside - inside;
+        let ray = Ray::new(to_parry(inside), to_parry(&direction));
+        if let Some(t) = self.shape.cast_local_ray(&ray, 1.0, false) {
+            if t.is_finite() && (0.0..=1.0).contains(&t) {
+                return inside + direction * t;
+            }
+        }
+        // 60 halvings take the bracket below f64 resolution of any edge.
+        let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if self.contains(&(inside + direction * mid)) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        inside + direction * (0.5 * (lo + hi))
+    }
+}
