@@ -137,11 +137,15 @@ enum CliError {
         source: std::io::Error,
     },
     #[error("invalid --{name}: {reason}")]
-    Argument { name: &'static str, reason: String },
+    Argument {
+        name: &'static str,
+        reason: String,
+    },
     #[error(transparent)]
     Bench(#[from] crate::bench::BenchError),
     #[error(transparent)]
     Edit(#[from] crate::edit_command::EditError),
+    #[error(transparent)]
     MeshCommand(#[from] crate::mesh_command::MeshCommandError),
 }
 
