@@ -44,7 +44,7 @@ pub use msh::{parse_msh, read_msh};
 pub use obj::{parse_obj, read_obj, write_obj};
 pub use stl::{parse_stl, read_stl};
 pub use tetgen::{parse_tetgen, read_tetgen};
-pub use vtk::write_vtk;
+pub use vtk::{write_vtk, write_vtk_with_data, FrameData};
 
 /// A mesh read from a file of any supported format: a surface or a volume.
 #[derive(Clone, Debug, PartialEq)]
@@ -206,6 +206,21 @@ pub fn save_obj<const D: usize>(path: &Path, frame: &Frame<D>) -> Result<(), Mes
 /// or the file cannot be written; the target is then left as it was.
 pub fn save_vtk<const D: usize>(path: &Path, frame: &Frame<D>) -> Result<(), MeshError> {
     write_atomically(path, |out| write_vtk(frame, out))
+}
+
+/// Write `frame` with point and cell data as legacy ASCII VTK to `path`, atomically (see
+/// [`write_atomically`] and [`write_vtk_with_data`]).
+///
+/// # Errors
+/// [`MeshError::Io`] naming `path` if the frame or its data is invalid (index out of range,
+/// non-finite value, an array of the wrong length) or the file cannot be written; the target is then
+/// left as it was.
+pub fn save_vtk_with_data<const D: usize>(
+    path: &Path,
+    frame: &Frame<D>,
+    data: &FrameData<D>,
+) -> Result<(), MeshError> {
+    write_atomically(path, |out| write_vtk_with_data(frame, data, out))
 }
 
 /// Read a whole file, mapping failure to [`MeshError::Io`].
