@@ -39,8 +39,9 @@ pub struct FrameData<'a, const D: usize> {
     /// One flag per position, written as the point scalars `pinned` (1 pinned, 0 free).
     pub pinned: Option<&'a [bool]>,
     /// One strain per line of the frame (dimensionless: |r|/l − 1 of the spring the line draws,
-    /// > 0 stretched, < 0 compressed), written as the cell scalars `strain`. The frame's other
-    /// cells (triangles or tetrahedra) get 0 there: legacy VTK has one value per cell.
+    /// positive when stretched, negative when compressed), written as the cell scalars `strain`.
+    /// The frame's other cells (triangles or tetrahedra) get 0 there: legacy VTK has one value per
+    /// cell.
     pub line_strain: Option<&'a [f64]>,
 }
 
