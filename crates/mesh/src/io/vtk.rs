@@ -266,6 +266,59 @@ mod tests {
     }
 
     #[test]
+    fn point_and_cell_data_are_written_and_checked() {
+        let p = [Vec3::zeros(), Vec3::x(), Vec3::y()];
+        let v = [Vec3::new(0.5, -1.0, 0.0), Vec3::zeros(), Vec3::z()];
+        let frame = Frame {
+            triangles: &[[0, 1, 2]],
+            lines: &[[0, 1], [1, 2]],
+            ..Frame::points(&p)
+        };
+        let data = FrameData {
+            velocities: Some(&v),
+            pinned: Some(&[true, false, false]),
+            line_strain: Some(&[0.25, -0.125]),
+        };
+        let mut bytes = Vec::new();
+        write_vtk_with_data(&frame, &data, &mut bytes).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(text.contains("POINT_DATA 3\n"), "{text}");
+        assert!(text.contains("VECTORS velocity double\n"), "{text}");
+        assert!(text.contains("0.5 -1 0 0 0 0 0 0 1"), "{text}");
+        assert!(text.contains("SCALARS pinned int 1\n"), "{text}");
+        assert!(text.contains("CELL_DATA 3\n"), "{text}");
+        assert!(text.contains("SCALARS strain double 1\n"), "{text}");
+        // The triangle's strain is 0, the lines' follow.
+        assert!(text.contains("0 0.25 -0.125"), "{text}");
+
+        // Wrong lengths and non-finite values are refused before anything is written.
+        let bad = [
+            FrameData {
+                velocities: Some(&v[..2]),
+                ..FrameData::default()
+            },
+            FrameData {
+                pinned: Some(&[true]),
+                ..FrameData::default()
+            },
+            FrameData {
+                line_strain: Some(&[0.0]),
+                ..FrameData::default()
+            },
+            FrameData {
+                line_strain: Some(&[0.0, f64::NAN]),
+                ..FrameData::default()
+            },
+        ];
+        for data in bad {
+            let mut bytes = Vec::new();
+            let e = write_vtk_with_data(&frame, &data, &mut bytes).unwrap_err();
+            assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{e}");
+            assert!(bytes.is_empty());
+        }
+    }
+
+    #[test]
     fn io_errors_come_through() {
         struct Full;
         impl Write for Full {
