@@ -102,7 +102,10 @@ fn run_writes_frames_summary_and_preview() {
         .collect();
     let mut sorted = names.clone();
     sorted.sort();
-    assert_eq!(sorted, ["frames", "preview.png", "summary.json"]);
+    assert_eq!(
+        sorted,
+        ["frames", "preview.png", "summary.json", "timings.json"]
+    );
 
     // A shorter second run into the same directory leaves exactly its own frames.
     let out = hooke(&[

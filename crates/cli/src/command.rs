@@ -1,12 +1,13 @@
 //! `hooke run` and `hooke scenes`, and the dispatch of every subcommand.
 
+use crate::checkpoint::{self, Checkpoint, CheckpointError};
 use crate::output;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use crate::mesh::io::{save_obj, save_vtk, Frame};
+use crate::mesh::io::{save_obj, save_vtk_with_data, Frame, FrameData};
 use crate::mesh::MeshError;
 use crate::sim::file::{load_scene, FrameFormat, SceneFileError};
 use crate::sim::scenes::{self, AnySetup, Setup};
@@ -17,8 +18,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 use nalgebra::SVector;
 
 use output::{
-    progress_bar, render_preview, write_summary, OutputError, PreviewInput, PreviewPositions,
-    ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,
+    progress_bar, render_preview, write_summary, write_timings, OutputError, PreviewInput,
+    PreviewPositions, ResidualRecord, RunSummary, RunTimings, SolverSettingsRecord, StepRecord,
+    StepTiming,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -49,8 +51,9 @@ enum Command {
     Mesh(crate::mesh_command::MeshArgs),
 }
 
-#[derive(clap::Args, Default)]
-struct RunArgs {
+/// The arguments of `hooke run`; a checkpoint records them (see [`RunArgs::for_checkpoint`]).
+#[derive(clap::Args, Default, serde::Serialize, serde::Deserialize)]
+pub(crate) struct RunArgs {
     /// A built-in scene name (see `hooke scenes`) or a scene file (.toml).
     #[arg(default_value = DEFAULT_SCENE)]
     scene: String,
@@ -109,10 +112,62 @@ struct RunArgs {
     format: Option<Format>,
     /// No progress bar.
     #[arg(long, short)]
+    #[serde(skip)]
     quiet: bool,
+    /// Write a checkpoint, DIR/checkpoint.json, after every K-th frame (replacing the previous
+    /// one, atomically), from which `hooke run --resume DIR` continues the run.
+    #[arg(long, value_name = "K")]
+    checkpoint_every: Option<usize>,
+    /// Continue the run in DIR from its last checkpoint, with the checkpoint's scene and settings
+    /// (no other argument but --quiet may be given): its frames and summary.json are then those of
+    /// a run that was never stopped.
+    #[arg(long, value_name = "DIR", conflicts_with_all = [
+        "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "steps", "dt",
+        "substeps", "force", "energy_limit", "pin_method", "out", "format", "checkpoint_every",
+    ])]
+    #[serde(skip)]
+    resume: Option<PathBuf>,
+    /// For tests: stop like a killed run right after frame N is written (no summary, no
+    /// preview), with an error.
+    #[arg(long, value_name = "N", hide = true)]
+    #[serde(skip)]
+    stop_after: Option<usize>,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+impl RunArgs {
+    /// The scene argument: a built-in scene's name or a scene file's path.
+    pub(crate) fn scene(&self) -> &str {
+        &self.scene
+    }
+
+    /// The arguments a checkpoint records: the scene file by its absolute path, and nothing that
+    /// only concerns this process (output directory, progress bar, resumption, test hook).
+    pub(crate) fn for_checkpoint(&self) -> RunArgs {
+        RunArgs {
+            scene: checkpoint::absolute_scene(&self.scene),
+            integrator: self.integrator.clone(),
+            beta: self.beta,
+            linear_solver: self.linear_solver.clone(),
+            iterations: self.iterations,
+            tolerance: self.tolerance,
+            steps: self.steps,
+            dt: self.dt,
+            substeps: self.substeps,
+            force: self.force,
+            energy_limit: self.energy_limit.clone(),
+            pin_method: self.pin_method.clone(),
+            out: PathBuf::new(),
+            format: self.format,
+            quiet: false,
+            checkpoint_every: self.checkpoint_every,
+            resume: None,
+            stop_after: None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 enum Format {
     Obj,
     Vtk,
@@ -137,16 +192,17 @@ enum CliError {
         source: std::io::Error,
     },
     #[error("invalid --{name}: {reason}")]
-    Argument {
-        name: &'static str,
-        reason: String,
-    },
+    Argument { name: &'static str, reason: String },
     #[error(transparent)]
     Bench(#[from] crate::bench::BenchError),
     #[error(transparent)]
     Edit(#[from] crate::edit_command::EditError),
     #[error(transparent)]
     MeshCommand(#[from] crate::mesh_command::MeshCommandError),
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error("stopped after frame {0} (--stop-after)")]
+    Stopped(usize),
 }
 
 /// Parses the command line, runs the command and reports any error on standard error.
@@ -184,6 +240,21 @@ pub fn main() -> ExitCode {
 }
 
 fn run(args: &RunArgs) -> Result<(), CliError> {
+    // A resumed run takes its arguments from the checkpoint.
+    let (resumed_args, resume) = match &args.resume {
+        Some(dir) => {
+            let point = Checkpoint::read(dir)?;
+            let resumed = RunArgs {
+                out: dir.clone(),
+                quiet: args.quiet,
+                stop_after: args.stop_after,
+                ..point.args.for_checkpoint()
+            };
+            (Some(resumed), Some(point))
+        }
+        None => (None, None),
+    };
+    let args = resumed_args.as_ref().unwrap_or(args);
     let path = Path::new(&args.scene);
     let (setup, file_format) = if path.extension().is_some_and(|e| e == "toml") || path.is_file() {
         let file = load_scene(path)?;
@@ -199,8 +270,8 @@ fn run(args: &RunArgs) -> Result<(), CliError> {
         None => file_format,
     };
     match setup {
-        AnySetup::Two(s) => run_setup(s, args, format, |p| PreviewPositions::Two(p)),
-        AnySetup::Three(s) => run_setup(s, args, format, |p| PreviewPositions::Three(p)),
+        AnySetup::Two(s) => run_setup(s, args, format, resume, |p| PreviewPositions::Two(p)),
+        AnySetup::Three(s) => run_setup(s, args, format, resume, |p| PreviewPositions::Three(p)),
     }
 }
 
@@ -208,6 +279,7 @@ fn run_setup<const D: usize>(
     mut setup: Setup<D>,
     args: &RunArgs,
     format: FrameFormat,
+    resume: Option<Checkpoint>,
     preview_positions: impl for<'a> Fn(&'a [SVector<f64, D>]) -> PreviewPositions<'a>,
 ) -> Result<(), CliError> {
     if let Some(name) = &args.integrator {
@@ -283,6 +355,12 @@ fn run_setup<const D: usize>(
         }
         setup.steps = steps;
     }
+    if args.checkpoint_every == Some(0) {
+        return Err(CliError::Argument {
+            name: "checkpoint-every",
+            reason: "must be at least 1".into(),
+        });
+    }
     if args.substeps.is_some() {
         setup.settings.substeps = args.substeps;
     }
@@ -301,20 +379,26 @@ fn run_setup<const D: usize>(
         path: frames_dir.clone(),
         source,
     })?;
-    remove_stale_frames(&frames_dir)?;
 
     let name = setup.name.clone();
     let steps = setup.steps;
     let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings)?;
+    let resumed = match resume {
+        Some(point) => Some(point.restore(&args.out, &mut sim)?),
+        None => None,
+    };
+    // Frames after the checkpoint (or, for a new run, every frame) are an earlier process's.
+    remove_stale_frames(&frames_dir, resumed.as_ref().map(|r| r.frame))?;
     let mesh = sim.scene().mesh().clone();
     let lines: Vec<[u32; 2]> = if mesh.triangles().is_empty() {
         mesh.springs().iter().map(|s| [s.i, s.j]).collect()
     } else {
         Vec::new()
     };
-    let write_frame = |index: usize, positions: &[SVector<f64, D>]| -> Result<(), CliError> {
+    let pinned_flags = sim.scene().is_pinned().to_vec();
+    let write_frame = |index: usize, state: &crate::sim::State<D>| -> Result<(), CliError> {
         let frame = Frame {
-            positions,
+            positions: &state.positions,
             triangles: mesh.triangles(),
             tetrahedra: mesh.tetrahedra(),
             lines: &lines,
@@ -324,7 +408,28 @@ fn run_setup<const D: usize>(
                 save_obj(&frames_dir.join(format!("frame_{index:04}.obj")), &frame)?
             }
             FrameFormat::Vtk => {
-                save_vtk(&frames_dir.join(format!("frame_{index:04}.vtk")), &frame)?
+                // The lines, where there are any, are the springs in order.
+                let strain: Vec<f64> = if lines.is_empty() {
+                    Vec::new()
+                } else {
+                    mesh.springs()
+                        .iter()
+                        .map(|s| {
+                            let r = state.positions[s.i as usize] - state.positions[s.j as usize];
+                            r.norm() / s.rest_length - 1.0
+                        })
+                        .collect()
+                };
+                let data = FrameData {
+                    velocities: Some(&state.velocities),
+                    pinned: Some(&pinned_flags),
+                    line_strain: (!lines.is_empty()).then_some(&strain[..]),
+                };
+                save_vtk_with_data(
+                    &frames_dir.join(format!("frame_{index:04}.vtk")),
+                    &frame,
+                    &data,
+                )?
             }
         }
         Ok(())
@@ -379,8 +484,11 @@ fn run_setup<const D: usize>(
                 .and_then(|r| r.solver)
                 .map(|s| s.substeps)
                 .filter(|&pieces| pieces > 1),
-            wall_time_s: report.map_or(0.0, |r| r.wall_time.as_secs_f64()),
         }
+    };
+    let timing = |step: usize, report: Option<crate::sim::StepReport>| StepTiming {
+        step,
+        wall_time_s: report.map_or(0.0, |r| r.wall_time.as_secs_f64()),
     };
     eprintln!(
         "{name}: {} vertices, {} springs, {} with {} substep(s) of {:.3e} s (explicit bound ≈ {:.3e} s), {steps} frames",
@@ -392,16 +500,40 @@ fn run_setup<const D: usize>(
         sim.stability_bound().estimated_step,
     );
     let start = Instant::now();
-    write_frame(0, &sim.state().positions)?;
-    summary.steps.push(record(0, &sim, None));
+    let mut timings = RunTimings::default();
+    let first = match resumed {
+        Some(resumed) => {
+            summary.steps = resumed.steps;
+            timings.steps = resumed.timings;
+            timings.resumed_after.push(resumed.frame);
+            resumed.frame + 1
+        }
+        None => {
+            write_frame(0, sim.state())?;
+            summary.steps.push(record(0, &sim, None));
+            timings.steps.push(timing(0, None));
+            1
+        }
+    };
     let progress = progress_bar(steps as u64, args.quiet);
+    progress.inc(first as u64 - 1);
     let mut failure = None;
-    for step in 1..=steps {
+    for step in first..=steps {
         match sim.step() {
             Ok(report) => {
                 summary.steps.push(record(step, &sim, Some(report)));
-                write_frame(step, &sim.state().positions)?;
+                timings.steps.push(timing(step, Some(report)));
+                write_frame(step, sim.state())?;
+                if args.checkpoint_every.is_some_and(|k| step % k == 0) {
+                    // Timings first: a resumed run reads those up to its checkpoint back.
+                    write_timings(&args.out.join("timings.json"), &timings)?;
+                    Checkpoint::new(args, step, &sim, &summary.steps)?.write(&args.out)?;
+                }
                 progress.inc(1);
+                if args.stop_after == Some(step) {
+                    progress.finish_and_clear();
+                    return Err(CliError::Stopped(step));
+                }
             }
             Err(e) => {
                 failure = Some(e);
@@ -430,6 +562,7 @@ fn run_setup<const D: usize>(
     }
     // The summary is written even after a failure, so that the steps before it can be inspected.
     write_summary(&args.out.join("summary.json"), &summary)?;
+    write_timings(&args.out.join("timings.json"), &timings)?;
     if let Some(e) = failure {
         return Err(e.into());
     }
@@ -446,6 +579,7 @@ fn run_setup<const D: usize>(
             positions: preview_positions(&state.positions),
             triangles: mesh.triangles(),
             lines: &lines,
+            springs: mesh.springs().len(),
             pinned: sim.scene().pinned(),
             bounds_2d,
         },
@@ -453,7 +587,7 @@ fn run_setup<const D: usize>(
     let first = summary.steps.first().map_or(0.0, |r| r.total_energy);
     let last = summary.steps.last().map_or(0.0, |r| r.total_energy);
     eprintln!(
-        "done in {:.2} s: energy {first:.6e} J → {last:.6e} J; wrote {}/frames ({} files), summary.json, preview.png",
+        "done in {:.2} s: energy {first:.6e} J → {last:.6e} J; wrote {}/frames ({} files), summary.json, timings.json, preview.png",
         start.elapsed().as_secs_f64(),
         args.out.display(),
         steps + 1
@@ -461,8 +595,9 @@ fn run_setup<const D: usize>(
     Ok(())
 }
 
-/// Remove frame files of an earlier run, so that the directory holds exactly this run's frames.
-fn remove_stale_frames(dir: &Path) -> Result<(), CliError> {
+/// Remove frame files of an earlier run (those after frame `keep_through`, when a run resumes
+/// from its checkpoint there), so that the directory holds exactly this run's frames.
+fn remove_stale_frames(dir: &Path, keep_through: Option<usize>) -> Result<(), CliError> {
     let io = |source| CliError::Io {
         path: dir.to_path_buf(),
         source,
@@ -470,7 +605,15 @@ fn remove_stale_frames(dir: &Path) -> Result<(), CliError> {
     for entry in std::fs::read_dir(dir).map_err(io)? {
         let path = entry.map_err(io)?.path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if name.starts_with("frame_") && (name.ends_with(".obj") || name.ends_with(".vtk")) {
+        let Some(index) = name
+            .strip_prefix("frame_")
+            .and_then(|rest| rest.strip_suffix(".obj").or(rest.strip_suffix(".vtk")))
+        else {
+            continue;
+        };
+        let kept = keep_through
+            .is_some_and(|last| index.parse::<usize>().is_ok_and(|index| index <= last));
+        if !kept {
             std::fs::remove_file(&path).map_err(|source| CliError::Io {
                 path: path.clone(),
                 source,

@@ -11,6 +11,7 @@
 #![deny(missing_docs)]
 
 pub mod bench;
+mod checkpoint;
 mod command;
 pub mod edit_command;
 mod mesh_command;

@@ -42,6 +42,7 @@ use hooke_solvers::{
 use nalgebra::SVector;
 
 use crate::forces::ExternalForce;
+use crate::simulation::HalvingMemory;
 use crate::{PinMethod, Scene, SimError};
 
 /// Which solver, with its state kept across steps.
@@ -381,16 +382,7 @@ impl<const D: usize> BackwardEuler<D> {
             let target = depth + levels.clamp(1.0, f64::from(MAX_HALVINGS)) as u32;
             (whole.map(Some), target.min(MAX_HALVINGS))
         };
-        if self.half.is_none() {
-            let half_scene = scene.clone().with_time_step(0.5 * scene.time_step())?;
-            let integrator = BackwardEuler::newton(&half_scene, params, self.pins, self.parallel)?;
-            self.half = Some(Box::new(Half {
-                scene: half_scene,
-                integrator,
-                pins_halfway: positions.to_vec(),
-            }));
-        }
-        let half = self.half.as_mut().expect("built above");
+        let half = self.half_integrator(scene, params, positions)?;
         // Fixed pins stay put; moving ones are where their path is halfway through the step.
         half.pins_halfway.copy_from_slice(positions);
         let halfway = pieces.start + 0.5 * scene.time_step();
@@ -400,7 +392,7 @@ impl<const D: usize> BackwardEuler<D> {
             integrator,
             pins_halfway,
             ..
-        } = &mut **half;
+        } = half;
         let first = integrator.step_halving(
             half_scene,
             positions,
@@ -437,6 +429,95 @@ impl<const D: usize> BackwardEuler<D> {
             },
             substeps: first.substeps + second.substeps,
         })
+    }
+
+    /// The integrator for h/2, built the first time it is needed (`positions` only sizes its
+    /// buffer).
+    fn half_integrator(
+        &mut self,
+        scene: &Scene<D>,
+        params: NewtonParams,
+        positions: &[SVector<f64, D>],
+    ) -> Result<&mut Half<D>, SimError> {
+        if self.half.is_none() {
+            let half_scene = scene.clone().with_time_step(0.5 * scene.time_step())?;
+            let integrator = BackwardEuler::newton(&half_scene, params, self.pins, self.parallel)?;
+            self.half = Some(Box::new(Half {
+                scene: half_scene,
+                integrator,
+                pins_halfway: positions.to_vec(),
+            }));
+        }
+        Ok(self.half.as_mut().expect("built above"))
+    }
+
+    /// The halving back-off at this step size and at every half size built so far (outermost
+    /// first); empty for projective dynamics, which does not halve.
+    pub(crate) fn halving_memory(&self) -> Vec<HalvingMemory> {
+        let mut memory = Vec::new();
+        let mut level = Some(self);
+        while let Some(integrator) = level {
+            if !matches!(integrator.solver, Solver::Newton { .. }) {
+                break;
+            }
+            memory.push(HalvingMemory::new(
+                integrator.skip_whole,
+                integrator.failure_streak,
+            ));
+            level = integrator.half.as_ref().map(|h| &h.integrator);
+        }
+        memory
+    }
+
+    /// Put back what [`BackwardEuler::halving_memory`] returned, building the half-step
+    /// integrators it reaches down to. Nothing changes if it fails.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] if the memory is deeper than the halving goes or is given to
+    /// projective dynamics; the errors of building a half-step integrator.
+    pub(crate) fn restore_halving_memory(
+        &mut self,
+        scene: &Scene<D>,
+        memory: &[HalvingMemory],
+        positions: &[SVector<f64, D>],
+    ) -> Result<(), SimError> {
+        let deepest = MAX_HALVINGS as usize + 1;
+        let params = match &self.solver {
+            Solver::Newton { newton, .. } if memory.len() <= deepest => newton.params,
+            Solver::Newton { .. } => {
+                return Err(SimError::invalid(
+                    "snapshot.halving",
+                    format!("{} entries", memory.len()),
+                    format!("backward Euler halves at most {MAX_HALVINGS} times"),
+                ))
+            }
+            Solver::Projective { .. } if memory.is_empty() => return Ok(()),
+            Solver::Projective { .. } => {
+                return Err(SimError::invalid(
+                    "snapshot.halving",
+                    format!("{} entries", memory.len()),
+                    "projective dynamics does not halve steps",
+                ))
+            }
+        };
+        // Build every level first, so that a failure leaves the counts as they were (a built but
+        // unused half-step integrator changes no result: it is the one a halving would build).
+        let mut level = &mut *self;
+        let mut scene = scene.clone();
+        for _ in 1..memory.len() {
+            level.half_integrator(&scene, params, positions)?;
+            let half = level.half.as_mut().expect("built above");
+            scene = half.scene.clone();
+            level = &mut half.integrator;
+        }
+        let mut level = Some(self);
+        for m in memory {
+            let integrator = level.expect("built above");
+            integrator.skip_whole = m.skip_whole;
+            integrator.failure_streak = m.failure_streak;
+            level = integrator.half.as_deref_mut().map(|h| &mut h.integrator);
+        }
+        Ok(())
     }
 
     /// One step of the scene's h, without halving.

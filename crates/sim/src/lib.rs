@@ -46,5 +46,5 @@ pub use integrator::{
     SolverOptions, UnknownPinMethod,
 };
 pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Scene, State};
-pub use simulation::{Simulation, StepReport, MAX_AUTO_SUBSTEPS};
+pub use simulation::{HalvingMemory, Simulation, Snapshot, StepReport, MAX_AUTO_SUBSTEPS};
 pub use stability::{stability_bound, StabilityBound};

@@ -14,6 +14,9 @@ use crate::linearized::Linearized;
 use crate::stability::{stability_bound, StabilityBound};
 use crate::{Energy, Scene, SimError, State};
 
+mod snapshot;
+pub use snapshot::{HalvingMemory, Snapshot};
+
 /// Auto substepping never asks for more than this many substeps per frame: past it the scene
 /// needs an implicit integrator, and saying so beats running for hours.
 pub const MAX_AUTO_SUBSTEPS: usize = 100_000;

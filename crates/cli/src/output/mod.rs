@@ -1,6 +1,6 @@
 //! What a run leaves on disk and on the terminal: the PNG preview of its last frame
 //! ([`render_preview`]), the per-step `summary.json` ([`write_summary`]) and the progress bar
-//! ([`progress_bar`]).
+//! ([`progress_bar`]), the wall times of the steps (`timings.json`, [`write_timings`]).
 //!
 //! Files are written atomically: each is written to a temporary file in the destination's
 //! directory and renamed onto the destination only once it is complete, so a reader never sees a
@@ -9,12 +9,14 @@
 mod preview;
 mod progress;
 mod summary;
+mod timings;
 
 use std::path::{Path, PathBuf};
 
 pub use preview::{render_preview, PreviewInput, PreviewPositions};
 pub use progress::progress_bar;
 pub use summary::{write_summary, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord};
+pub use timings::{read_timings, write_timings, RunTimings, StepTiming};
 
 // Extras the binary may not need (other image sizes, reading a summary back): for tests and tools.
 #[allow(unused_imports)]
@@ -71,6 +73,40 @@ impl OutputError {
             message: message.to_string(),
         }
     }
+}
+
+/// Writes `value` to `path` as JSON (pretty-printed or compact), atomically: to a temporary file in
+/// `path`'s directory, flushed, synced and renamed onto `path`; on any error the temporary file is
+/// removed and `path` is left as it was.
+pub(crate) fn write_json_atomically(
+    path: &Path,
+    value: &impl serde::Serialize,
+    pretty: bool,
+) -> Result<(), OutputError> {
+    use std::io::Write;
+    let tmp = temp_file_beside(path, ".hooke-", ".json.tmp")?;
+    {
+        let mut writer = std::io::BufWriter::new(tmp.as_file());
+        let json = if pretty {
+            serde_json::to_writer_pretty(&mut writer, value)
+        } else {
+            serde_json::to_writer(&mut writer, value)
+        };
+        json.map_err(|source| OutputError::Json {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        writer
+            .write_all(b"\n")
+            .and_then(|()| writer.flush())
+            .map_err(|e| OutputError::io(path, e))?;
+    }
+    tmp.as_file()
+        .sync_all()
+        .map_err(|e| OutputError::io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| OutputError::io(path, e.error))?;
+    Ok(())
 }
 
 /// A new temporary file in `path`'s directory, named `{prefix}…{suffix}`, with the permissions an

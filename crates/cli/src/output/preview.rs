@@ -85,8 +85,11 @@ pub struct PreviewInput<'a> {
     pub positions: PreviewPositions<'a>,
     /// Surface triangles (3D: filled and shaded; 2D: filled lightly). May be empty.
     pub triangles: &'a [[u32; 3]],
-    /// Springs. In 3D they are drawn only when there are no triangles.
+    /// Springs to draw. In 3D they are drawn only when there are no triangles.
     pub lines: &'a [[u32; 2]],
+    /// The number of springs of the mesh, for the caption (a cloth's springs are not drawn, so
+    /// `lines` may be empty).
+    pub springs: usize,
     /// Pinned vertices, drawn as red dots.
     pub pinned: &'a [u32],
     /// The box of a 2D scene as (min, max) corners; the view is fitted to it. `None` fits the
@@ -532,7 +535,7 @@ fn draw_3d(
         "3D · {} vertices · {} triangles · {} springs · {} pinned",
         n,
         input.triangles.len(),
-        input.lines.len(),
+        input.springs,
         input.pinned.len()
     );
     let finite = positions.iter().filter(|p| p.iter().all(|x| x.is_finite()));
@@ -672,7 +675,7 @@ fn draw_2d(
     let detail = format!(
         "2D · {} particles · {} springs · {} pinned",
         n,
-        input.lines.len(),
+        input.springs,
         input.pinned.len()
     );
     Ok(Caption {
@@ -838,9 +841,51 @@ mod tests {
             positions: PreviewPositions::Three(positions),
             triangles,
             lines,
+            springs: lines.len(),
             pinned,
             bounds_2d: None,
         }
+    }
+
+    /// The caption's detail line for `input`, drawn at a small size.
+    fn caption_detail(input: &PreviewInput) -> String {
+        let (width, height) = (80, 60);
+        let mut big = vec![0u8; (width * SS * height * SS * 3) as usize];
+        let area =
+            BitMapBackend::with_buffer(&mut big, (width * SS, height * SS)).into_drawing_area();
+        let layout = Layout::new(width, height);
+        let caption = match input.positions {
+            PreviewPositions::Three(p) => draw_3d(&area, &layout, input, p),
+            PreviewPositions::Two(p) => draw_2d(&area, &layout, input, p),
+        };
+        caption.unwrap().detail
+    }
+
+    #[test]
+    fn the_caption_counts_the_mesh_springs_even_when_none_are_drawn() {
+        // A cloth draws its triangles, not its springs: the caption still counts the springs.
+        let (p, t, l) = hanging_cloth(6);
+        let cloth = PreviewInput {
+            lines: &[],
+            springs: 157,
+            ..cloth_input(&p, &t, &l, &[0, 5])
+        };
+        let detail = caption_detail(&cloth);
+        let counts = format!(
+            "3D · 36 vertices · {} triangles · 157 springs · 2 pinned · size ",
+            t.len()
+        );
+        assert!(detail.starts_with(&counts), "{detail}");
+        let flat: Vec<Vector2<f64>> = p.iter().map(|q| Vector2::new(q.x, q.y)).collect();
+        let particles = PreviewInput {
+            positions: PreviewPositions::Two(&flat),
+            ..cloth
+        };
+        assert!(
+            caption_detail(&particles).starts_with("2D · 36 particles · 157 springs · 2 pinned"),
+            "{}",
+            caption_detail(&particles)
+        );
     }
 
     #[test]
@@ -883,6 +928,7 @@ mod tests {
             positions: PreviewPositions::Two(&positions),
             triangles: &[],
             lines: &lines,
+            springs: lines.len(),
             pinned: &[0, 7],
             bounds_2d: Some(([0.0, 0.0], [1.0, 1.0])),
         };
@@ -945,6 +991,7 @@ mod tests {
                     positions: PreviewPositions::Two(pts),
                     triangles: &[[0, 1, 2], [1, 2, 3]],
                     lines: &[[0, 1], [1, 2], [2, 3], [1, 9]],
+                    springs: 4,
                     pinned: &[1, 2, 42],
                     bounds_2d: bounds,
                 };

@@ -1,7 +1,8 @@
 //! `DIR/summary.json`: what a run was and how each step went.
 //!
 //! Units are SI throughout: energies in joules (J), times in seconds (s); `max_stretch` is
-//! dimensionless. JSON has no NaN or infinity: `serde_json` writes a non-finite number as `null`,
+//! dimensionless. Wall times are not here but in `timings.json`: the summary holds only results,
+//! the same, byte for byte, for every run of the same scene and settings. JSON has no NaN or infinity: `serde_json` writes a non-finite number as `null`,
 //! and [`read_summary`] reads a `null` energy, stretch or time back as NaN (a `null`
 //! `solver_residual` reads back as `None`, whatever it was).
 
@@ -121,9 +122,8 @@ pub struct StepRecord {
     /// step was not split.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub halved_into: Option<usize>,
-    /// Wall-clock time spent on the step, in seconds (s).
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub wall_time_s: f64,
+    // Wall times are in `timings.json` (see `super::timings`): a summary holds only results, so
+    // that a run resumed from a checkpoint writes the same summary as one that was not stopped.
 }
 
 /// Reads a number that `serde_json` may have written as `null` (NaN or ±infinity) as NaN.
@@ -204,7 +204,6 @@ mod tests {
                     solver_converged: Some(true),
                     clamped_hessian: true,
                     halved_into: Some(4),
-                    wall_time_s: 0.0042,
                 },
                 StepRecord {
                     step: 2,
@@ -219,7 +218,6 @@ mod tests {
                     solver_converged: None,
                     clamped_hessian: false,
                     halved_into: None,
-                    wall_time_s: 1e-3,
                 },
             ],
         }

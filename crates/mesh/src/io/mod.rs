@@ -47,7 +47,7 @@ pub use obj::{parse_obj, read_obj, write_obj};
 pub use stl::{parse_stl, read_stl};
 pub use tet_write::{save_msh, save_tetgen, write_msh, write_tetgen_ele, write_tetgen_node};
 pub use tetgen::{parse_tetgen, read_tetgen};
-pub use vtk::write_vtk;
+pub use vtk::{write_vtk, write_vtk_with_data, FrameData};
 pub use vtk_read::{parse_vtk, read_vtk};
 
 /// A mesh read from a file of any supported format: a surface or a volume.
@@ -212,6 +212,21 @@ pub fn save_obj<const D: usize>(path: &Path, frame: &Frame<D>) -> Result<(), Mes
 /// or the file cannot be written; the target is then left as it was.
 pub fn save_vtk<const D: usize>(path: &Path, frame: &Frame<D>) -> Result<(), MeshError> {
     write_atomically(path, |out| write_vtk(frame, out))
+}
+
+/// Write `frame` with point and cell data as legacy ASCII VTK to `path`, atomically (see
+/// [`write_atomically`] and [`write_vtk_with_data`]).
+///
+/// # Errors
+/// [`MeshError::Io`] naming `path` if the frame or its data is invalid (index out of range,
+/// non-finite value, an array of the wrong length) or the file cannot be written; the target is then
+/// left as it was.
+pub fn save_vtk_with_data<const D: usize>(
+    path: &Path,
+    frame: &Frame<D>,
+    data: &FrameData<D>,
+) -> Result<(), MeshError> {
+    write_atomically(path, |out| write_vtk_with_data(frame, data, out))
 }
 
 /// Read a whole file, mapping failure to [`MeshError::Io`].

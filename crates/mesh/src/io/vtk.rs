@@ -13,16 +13,109 @@
 //!
 //! `vtkio` writes each array (all points, all cell lists) on one line; VTK reads legacy data as white-
 //! space-separated tokens, so line length does not matter.
+//!
+//! A frame may carry data ([`FrameData`]): per point the velocity (`VECTORS velocity double`, m/s)
+//! and whether the vertex is pinned (`SCALARS pinned int`, 1 or 0), per cell the strain of each line
+//! (`SCALARS strain double`, |r|/l − 1 of the spring the line draws). ParaView lists them as arrays to
+//! colour by.
 
 use std::io::Write;
 
 use vtkio::model::{
-    Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers,
-    Vtk,
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+    VertexNumbers, Vtk,
 };
 use vtkio::writer::{AsciiWriter, WriteVtk};
 
+use nalgebra::SVector;
+
 use super::{xyz, Frame};
+
+/// Data written with a VTK frame ([`write_vtk_with_data`]); each entry is optional.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameData<'a, const D: usize> {
+    /// One velocity per position (m/s), written as the point vectors `velocity` (2D with z = 0).
+    pub velocities: Option<&'a [SVector<f64, D>]>,
+    /// One flag per position, written as the point scalars `pinned` (1 pinned, 0 free).
+    pub pinned: Option<&'a [bool]>,
+    /// One strain per line of the frame (dimensionless: |r|/l − 1 of the spring the line draws,
+    /// positive when stretched, negative when compressed), written as the cell scalars `strain`.
+    /// The frame's other cells (triangles or tetrahedra) get 0 there: legacy VTK has one value per
+    /// cell.
+    pub line_strain: Option<&'a [f64]>,
+}
+
+impl<const D: usize> Default for FrameData<'_, D> {
+    fn default() -> Self {
+        FrameData {
+            velocities: None,
+            pinned: None,
+            line_strain: None,
+        }
+    }
+}
+
+impl<const D: usize> FrameData<'_, D> {
+    /// Check the data against the frame: one entry per position or per line, finite numbers.
+    fn check(&self, frame: &Frame<D>) -> std::io::Result<()> {
+        let invalid =
+            |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
+        let count = |what: &str, len: usize, expected: usize, per: &str| {
+            if len == expected {
+                Ok(())
+            } else {
+                Err(invalid(format!(
+                    "{len} {what} for a frame of {expected} {per}"
+                )))
+            }
+        };
+        let points = frame.positions.len();
+        if let Some(v) = self.velocities {
+            count("velocities", v.len(), points, "vertices")?;
+            if let Some(i) = v.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+                return Err(invalid(format!("vertex {i}: the velocity is not finite")));
+            }
+        }
+        if let Some(p) = self.pinned {
+            count("pinned flags", p.len(), points, "vertices")?;
+        }
+        if let Some(s) = self.line_strain {
+            count("line strains", s.len(), frame.lines.len(), "lines")?;
+            if let Some(i) = s.iter().position(|s| !s.is_finite()) {
+                return Err(invalid(format!(
+                    "line {i}: the strain {} is not finite",
+                    s[i]
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The vtkio attributes; `cells_before_lines` cells precede the lines.
+    fn attributes(&self, cells_before_lines: usize) -> Attributes {
+        let mut attributes = Attributes::new();
+        if let Some(v) = self.velocities {
+            let data: Vec<f64> = v.iter().flat_map(xyz).collect();
+            attributes
+                .point
+                .push(Attribute::vectors("velocity").with_data(data));
+        }
+        if let Some(p) = self.pinned {
+            let data: Vec<i32> = p.iter().map(|&p| i32::from(p)).collect();
+            attributes
+                .point
+                .push(Attribute::scalars("pinned", 1).with_data(data));
+        }
+        if let Some(s) = self.line_strain {
+            let mut data = vec![0.0; cells_before_lines];
+            data.extend_from_slice(s);
+            attributes
+                .cell
+                .push(Attribute::scalars("strain", 1).with_data(data));
+        }
+        attributes
+    }
+}
 
 /// Write a frame as a legacy ASCII VTK unstructured grid (`# vtk DataFile Version 4.2`, title
 /// `hooke`), which ParaView opens directly.
@@ -30,15 +123,31 @@ use super::{xyz, Frame};
 /// Points: every position, 2D frames with z = 0, as `double` with shortest round-trip digits. Cells:
 /// the tetrahedra (VTK type 10) if there are any, otherwise the triangles (type 5); then the lines
 /// (type 3); a frame with none of these gets one vertex cell (type 1) per point so that the points
-/// are visible. No point or cell data. Output goes out in many small writes: pass a buffered writer
-/// (as [`super::save_vtk`] does).
+/// are visible. No point or cell data (see [`write_vtk_with_data`]). Output goes out in many small
+/// writes: pass a buffered writer (as [`super::save_vtk`] does).
 ///
 /// # Errors
 /// An error of kind [`std::io::ErrorKind::InvalidInput`] before anything is written if an index is out
 /// of range, a coordinate is not finite or the frame has more than `u32::MAX` cells; the errors of
 /// `out`; or, if `vtkio` itself fails, an error of kind [`std::io::ErrorKind::Other`] with its message.
 pub fn write_vtk<const D: usize>(frame: &Frame<D>, out: &mut impl Write) -> std::io::Result<()> {
+    write_vtk_with_data(frame, &FrameData::default(), out)
+}
+
+/// [`write_vtk`] with point and cell data: the velocities and pinned flags of `data` as point data,
+/// its line strains as cell data (see [`FrameData`]).
+///
+/// # Errors
+/// As [`write_vtk`]; also an error of kind [`std::io::ErrorKind::InvalidInput`] before anything is
+/// written if an array of `data` does not have one entry per position (velocities, flags) or per line
+/// (strains), or holds a non-finite number.
+pub fn write_vtk_with_data<const D: usize>(
+    frame: &Frame<D>,
+    data: &FrameData<D>,
+    out: &mut impl Write,
+) -> std::io::Result<()> {
     frame.check()?;
+    data.check(frame)?;
     let too_many = || {
         std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
@@ -63,6 +172,7 @@ pub fn write_vtk<const D: usize>(frame: &Frame<D>, out: &mut impl Write) -> std:
         }
         types.resize(frame.triangles.len(), CellType::Triangle);
     }
+    let cells_before_lines = types.len();
     for l in frame.lines {
         vertices.push(2);
         vertices.extend_from_slice(l);
@@ -93,7 +203,7 @@ pub fn write_vtk<const D: usize>(frame: &Frame<D>, out: &mut impl Write) -> std:
                 },
                 types,
             },
-            data: Attributes::new(),
+            data: data.attributes(cells_before_lines),
         }),
     };
     let mut adapter = FmtToIo { out, error: None };
@@ -153,6 +263,59 @@ mod tests {
         assert!(text.contains("0.3333333333333333"), "{text}");
         assert!(text.contains("CELLS 2 8\n4 0 1 2 3 2 0 3\n"), "{text}");
         assert!(text.contains("CELL_TYPES 2\n10\n3\n"), "{text}");
+    }
+
+    #[test]
+    fn point_and_cell_data_are_written_and_checked() {
+        let p = [Vec3::zeros(), Vec3::x(), Vec3::y()];
+        let v = [Vec3::new(0.5, -1.0, 0.0), Vec3::zeros(), Vec3::z()];
+        let frame = Frame {
+            triangles: &[[0, 1, 2]],
+            lines: &[[0, 1], [1, 2]],
+            ..Frame::points(&p)
+        };
+        let data = FrameData {
+            velocities: Some(&v),
+            pinned: Some(&[true, false, false]),
+            line_strain: Some(&[0.25, -0.125]),
+        };
+        let mut bytes = Vec::new();
+        write_vtk_with_data(&frame, &data, &mut bytes).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(text.contains("POINT_DATA 3\n"), "{text}");
+        assert!(text.contains("VECTORS velocity double\n"), "{text}");
+        assert!(text.contains("0.5 -1 0 0 0 0 0 0 1"), "{text}");
+        assert!(text.contains("SCALARS pinned int 1\n"), "{text}");
+        assert!(text.contains("CELL_DATA 3\n"), "{text}");
+        assert!(text.contains("SCALARS strain double 1\n"), "{text}");
+        // The triangle's strain is 0, the lines' follow.
+        assert!(text.contains("0 0.25 -0.125"), "{text}");
+
+        // Wrong lengths and non-finite values are refused before anything is written.
+        let bad = [
+            FrameData {
+                velocities: Some(&v[..2]),
+                ..FrameData::default()
+            },
+            FrameData {
+                pinned: Some(&[true]),
+                ..FrameData::default()
+            },
+            FrameData {
+                line_strain: Some(&[0.0]),
+                ..FrameData::default()
+            },
+            FrameData {
+                line_strain: Some(&[0.0, f64::NAN]),
+                ..FrameData::default()
+            },
+        ];
+        for data in bad {
+            let mut bytes = Vec::new();
+            let e = write_vtk_with_data(&frame, &data, &mut bytes).unwrap_err();
+            assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{e}");
+            assert!(bytes.is_empty());
+        }
     }
 
     #[test]

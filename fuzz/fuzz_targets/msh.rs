@@ -1,0 +1,11 @@
+//! The Gmsh MSH reader (ASCII and binary, versions 2 and 4) on arbitrary bytes: an `Ok` mesh or a
+//! typed error, never a panic or a hang.
+#![no_main]
+
+use std::path::Path;
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let _ = hooke_mesh::io::parse_msh(data, Path::new("fuzz.msh"));
+});
