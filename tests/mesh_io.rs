@@ -31,12 +31,13 @@ fn config() -> ProptestConfig {
 // ---------------------------------------------------------------------------------------------------
 // The shipped data: counts as in data/meshes/SOURCES.md.
 
-const SURFACES: [(&str, usize, usize); 5] = [
+const SURFACES: [(&str, usize, usize); 6] = [
     ("cloth_30x30.obj", 961, 1_800),
     ("sphere_642.obj", 642, 1_280),
     ("torus.obj", 400, 800),
     ("cube.obj", 152, 300),
     ("bunny.obj", 785, 1_566),
+    ("armadillo.obj", 1_053, 2_102),
 ];
 
 /// (file, nodes, tetrahedra, volume as quoted in SOURCES.md, half a unit of its last digit).
