@@ -285,11 +285,14 @@ impl<const D: usize> ProjectiveDynamics<D> {
         let iterations = iterations.max(4);
         let mut work = x.to_vec();
         let mut largest_displacement = 0.0;
-        let mut changes = Vec::with_capacity(iterations);
-        for _ in 0..iterations {
-            changes.push(self.iteration(springs, y, &mut work, &mut largest_displacement));
+        // Only the change halfway and the last one are needed: nothing is sized by `iterations`.
+        let (mut a, mut b) = (0.0, 0.0);
+        for k in 0..iterations {
+            b = self.iteration(springs, y, &mut work, &mut largest_displacement);
+            if k == iterations / 2 {
+                a = b;
+            }
         }
-        let (a, b) = (changes[iterations / 2], changes[iterations - 1]);
         let span = (iterations - 1 - iterations / 2) as f64;
         let rate = (b / a).powf(1.0 / span);
         (a > 0.0 && b > 0.0 && rate > 0.0 && rate < 1.0).then_some(rate)
