@@ -1,7 +1,7 @@
 //! The simulation crate's error type.
 
 use hooke_mesh::MeshError;
-use hooke_solvers::{NewtonError, ParamError, PdError, SolveError};
+use hooke_solvers::{LbfgsError, NewtonCgError, NewtonError, ParamError, PdError, SolveError};
 
 /// A solver's own error, typed, with the report it carries (Newton's, PD's or the contact
 /// projection's linear solve).
@@ -13,6 +13,13 @@ pub enum SolverFailure {
     /// [`crate::Integrator::Newton`]), so it is the failure of the smallest piece tried.
     #[error("Newton: {0}")]
     Newton(#[from] NewtonError),
+    /// Backward Euler by L-BFGS: its error, with its report (halved first, as Newton's; boxed,
+    /// as the report is large).
+    #[error("L-BFGS: {0}")]
+    Lbfgs(Box<LbfgsError>),
+    /// Backward Euler by Newton-CG: its error, with its report (halved first, as Newton's).
+    #[error("Newton-CG: {0}")]
+    NewtonCg(Box<NewtonCgError>),
     /// Projective dynamics could not be set up (its global matrix did not factor) or run.
     #[error("projective dynamics: {0}")]
     ProjectiveDynamics(#[from] PdError),
@@ -20,6 +27,18 @@ pub enum SolverFailure {
     /// block.
     #[error("contact projection: {0}")]
     ContactProjection(#[from] SolveError),
+}
+
+impl From<LbfgsError> for SolverFailure {
+    fn from(e: LbfgsError) -> Self {
+        SolverFailure::Lbfgs(Box::new(e))
+    }
+}
+
+impl From<NewtonCgError> for SolverFailure {
+    fn from(e: NewtonCgError) -> Self {
+        SolverFailure::NewtonCg(Box::new(e))
+    }
 }
 
 /// Everything that can stop a scene from being built or a step from being taken.

@@ -36,7 +36,8 @@
 
 use hooke_assembly::FreeDofs;
 use hooke_solvers::{
-    BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    BackwardEulerStep, ChebyshevParams, ChebyshevPd, Lbfgs, LbfgsParams, Newton, NewtonCg,
+    NewtonCgParams, NewtonParams, NewtonProblem, PdParams, Preconditioner, ProjectiveDynamics,
     SolveSummary,
 };
 use nalgebra::SVector;
@@ -56,12 +57,143 @@ enum Solver<const D: usize> {
     Projective {
         pd: Box<ProjectiveDynamics<D>>,
     },
+    /// L-BFGS or Newton-CG on Newton's objective, with PD's prefactored matrix as the initial
+    /// inverse Hessian or preconditioner.
+    PreconditionedByPd {
+        method: PdPreconditioned,
+        objective: Box<BackwardEulerStep<D>>,
+        pd: Box<ProjectiveDynamics<D>>,
+        /// Counter-force pins only: the preconditioner's map between the full and reduced layouts.
+        layout: Option<Box<FullLayout>>,
+        unknowns: Vec<f64>,
+    },
+    /// Chebyshev-accelerated PD; ρ is estimated on the first step unless given.
+    Chebyshev {
+        pd: Box<ProjectiveDynamics<D>>,
+        chebyshev: Box<ChebyshevPd<D>>,
+        /// Plain PD iterations of the first step's estimate of ρ, until it is made.
+        estimate: Option<usize>,
+        /// The ρ in use: estimated, or given, or the fallback when the estimate did not form.
+        rate: RateSource,
+    },
+}
+
+/// The minimiser of Φ that a step of backward Euler uses, with its settings: what a half-step
+/// integrator is rebuilt from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Minimizer {
+    /// Newton with a factorisation per iteration.
+    Newton(NewtonParams),
+    /// L-BFGS, H₀ the PD matrix (`PdParams` for its factorisation).
+    Lbfgs(LbfgsParams, PdParams),
+    /// Newton-CG preconditioned by the PD matrix.
+    NewtonCg(NewtonCgParams, PdParams),
+}
+
+/// The PD-preconditioned method and its state.
+#[derive(Debug)]
+enum PdPreconditioned {
+    Lbfgs(Box<Lbfgs>),
+    NewtonCg(Box<NewtonCg>),
+}
+
+impl PdPreconditioned {
+    /// Minimise Φ from `unknowns` with `preconditioner` (H₀ for L-BFGS): (iterations, relative
+    /// gradient, stop).
+    fn minimize<const D: usize>(
+        &mut self,
+        objective: &mut BackwardEulerStep<D>,
+        preconditioner: &mut impl Preconditioner,
+        unknowns: &mut [f64],
+    ) -> Result<(usize, f64, hooke_solvers::StopReason), SimError> {
+        Ok(match self {
+            PdPreconditioned::Lbfgs(lbfgs) => {
+                let r = lbfgs
+                    .minimize(objective, preconditioner, unknowns)
+                    .map_err(SimError::solver)?;
+                (r.iterations, r.gradient(), r.stop)
+            }
+            PdPreconditioned::NewtonCg(solver) => {
+                let r = solver
+                    .minimize(objective, preconditioner, unknowns)
+                    .map_err(SimError::solver)?;
+                (r.iterations, r.gradient(), r.stop)
+            }
+        })
+    }
+}
+
+/// Where Chebyshev PD's ρ comes from, for the step report.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RateSource {
+    /// Given in the settings ([`hooke_solvers::ChebyshevParams::rate`]).
+    Given(f64),
+    /// Estimated from plain PD iterations on the first step
+    /// ([`hooke_solvers::ProjectiveDynamics::estimate_rate`]).
+    Estimated(f64),
+    /// The estimate did not form (PD converged to round-off first, or the ratio was not in
+    /// (0, 1)): the settings' ρ is used.
+    Fallback(f64),
+}
+
+impl RateSource {
+    /// The ρ in use.
+    pub fn rate(&self) -> f64 {
+        match *self {
+            RateSource::Given(r) | RateSource::Estimated(r) | RateSource::Fallback(r) => r,
+        }
+    }
+}
+
+/// Counter-force pins keep every vertex an unknown (D per vertex); the PD factor is over the free
+/// vertices (D per free vertex). The preconditioner gathers the free rows, applies the factor and
+/// scatters back; a pinned row's Hessian is A_p I, so its entry is divided by A_p.
+#[derive(Debug)]
+struct FullLayout {
+    /// Per free vertex (in PD's order), its vertex.
+    free_vertices: Vec<u32>,
+    /// Per vertex, whether it is pinned, and its effective mass (kg).
+    pinned: Vec<bool>,
+    inertia: Vec<f64>,
+    reduced_r: Vec<f64>,
+    reduced_z: Vec<f64>,
+}
+
+/// [`FullLayout`] applied with PD's factor.
+struct FullLayoutPreconditioner<'a, const D: usize> {
+    layout: &'a mut FullLayout,
+    pd: &'a mut ProjectiveDynamics<D>,
+}
+
+impl<const D: usize> Preconditioner for FullLayoutPreconditioner<'_, D> {
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        let l = &mut *self.layout;
+        for (f, &v) in l.free_vertices.iter().enumerate() {
+            let v = v as usize;
+            l.reduced_r[D * f..D * f + D].copy_from_slice(&r[D * v..D * v + D]);
+        }
+        self.pd.apply(&l.reduced_r, &mut l.reduced_z);
+        for (v, (&pinned, &a)) in l.pinned.iter().zip(&l.inertia).enumerate() {
+            if pinned {
+                for k in D * v..D * v + D {
+                    z[k] = r[k] / a;
+                }
+            }
+        }
+        for (f, &v) in l.free_vertices.iter().enumerate() {
+            let v = v as usize;
+            z[D * v..D * v + D].copy_from_slice(&l.reduced_z[D * f..D * f + D]);
+        }
+    }
 }
 
 /// A backward Euler integrator bound to one scene (topology, pins, masses, h).
 #[derive(Debug)]
 pub(crate) struct BackwardEuler<const D: usize> {
     solver: Solver<D>,
+    /// The minimiser and its settings, for the half-step integrator; `None` for PD and Chebyshev
+    /// PD, which do not halve.
+    minimizer: Option<Minimizer>,
     /// How pins are held (Newton builds its half-step integrator the same way).
     pins: PinMethod,
     /// Newton only: whether the objective's per-spring loops run in parallel (the half-step
@@ -118,7 +250,7 @@ const MAX_HALVINGS: u32 = 12;
 
 /// Refuse scene terms the solver does not model (see the module documentation).
 fn check_supported<const D: usize>(scene: &Scene<D>, name: &str) -> Result<(), SimError> {
-    if name == "pd" && scene.damping().dashpot > 0.0 {
+    if (name == "pd" || name == "pd-chebyshev") && scene.damping().dashpot > 0.0 {
         return Err(SimError::Unsupported {
             integrator: name.to_string(),
             what: "dashpot damping (its Jacobian changes with the spring directions; projective \
@@ -216,9 +348,22 @@ fn inertial_target<const D: usize>(
 impl<const D: usize> BackwardEuler<D> {
     /// Newton's method on Φ, pins held by `pins`, the objective's loops parallel if `parallel`
     /// (the same bits either way).
+    #[cfg(test)]
     pub(crate) fn newton(
         scene: &Scene<D>,
         params: NewtonParams,
+        pins: PinMethod,
+        parallel: bool,
+    ) -> Result<Self, SimError> {
+        Self::minimizer(scene, Minimizer::Newton(params), pins, parallel)
+    }
+
+    /// Backward Euler by `minimizer` on Φ (Newton, L-BFGS or Newton-CG), pins held by `pins`,
+    /// the objective's loops parallel if `parallel` (the same bits either way). L-BFGS and
+    /// Newton-CG factor PD's matrix K(A + h²L)Kᵀ here, once.
+    pub(crate) fn minimizer(
+        scene: &Scene<D>,
+        minimizer: Minimizer,
         pins: PinMethod,
         parallel: bool,
     ) -> Result<Self, SimError> {
@@ -230,24 +375,72 @@ impl<const D: usize> BackwardEuler<D> {
         let inertia = effective_masses(scene);
         let mut objective = match pins {
             PinMethod::Reduction => {
-                BackwardEulerStep::new(mesh.springs(), &inertia, free, scene.time_step())
+                BackwardEulerStep::new(mesh.springs(), &inertia, free.clone(), scene.time_step())
             }
             PinMethod::CounterForce => BackwardEulerStep::with_counter_forces(
                 mesh.springs(),
                 &inertia,
-                free,
+                free.clone(),
                 scene.time_step(),
             ),
         };
         objective.set_parallel(parallel);
-        let newton = Newton::new(objective.pattern(), params).map_err(SimError::solver)?;
         let unknowns = vec![0.0; objective.dim()];
-        Ok(BackwardEuler {
-            solver: Solver::Newton {
-                newton: Box::new(newton),
+        let pd_factor = |pd_params: PdParams| {
+            let pd_params = PdParams {
+                parallel,
+                ..pd_params
+            };
+            ProjectiveDynamics::new(
+                mesh.springs(),
+                &inertia,
+                &free,
+                scene.time_step(),
+                pd_params,
+            )
+            .map(Box::new)
+            .map_err(SimError::solver)
+        };
+        let layout = (pins == PinMethod::CounterForce).then(|| {
+            let free_dofs = free.free_count() * D;
+            Box::new(FullLayout {
+                free_vertices: free.free_vertices().to_vec(),
+                pinned: scene.is_pinned().to_vec(),
+                inertia: inertia.clone(),
+                reduced_r: vec![0.0; free_dofs],
+                reduced_z: vec![0.0; free_dofs],
+            })
+        });
+        let solver = match minimizer {
+            Minimizer::Newton(params) => Solver::Newton {
+                newton: Box::new(
+                    Newton::new(objective.pattern(), params).map_err(SimError::solver)?,
+                ),
                 objective: Box::new(objective),
                 unknowns,
             },
+            Minimizer::Lbfgs(params, pd_params) => Solver::PreconditionedByPd {
+                method: PdPreconditioned::Lbfgs(Box::new(
+                    Lbfgs::new(unknowns.len(), params).map_err(SimError::SolverParameter)?,
+                )),
+                objective: Box::new(objective),
+                pd: pd_factor(pd_params)?,
+                layout,
+                unknowns,
+            },
+            Minimizer::NewtonCg(params, pd_params) => Solver::PreconditionedByPd {
+                method: PdPreconditioned::NewtonCg(Box::new(
+                    NewtonCg::new(unknowns.len(), params).map_err(SimError::SolverParameter)?,
+                )),
+                objective: Box::new(objective),
+                pd: pd_factor(pd_params)?,
+                layout,
+                unknowns,
+            },
+        };
+        Ok(BackwardEuler {
+            solver,
+            minimizer: Some(minimizer),
             pins,
             parallel,
             inertia,
@@ -261,11 +454,26 @@ impl<const D: usize> BackwardEuler<D> {
         })
     }
 
-    /// Time of projective dynamics' last factorisation (it factors once, in
-    /// [`BackwardEuler::projective`]); `None` for Newton.
+    /// Chebyshev PD's ρ and where it came from; `None` for the other solvers, and before the first
+    /// step when ρ is to be estimated.
+    pub(crate) fn chebyshev_rate(&self) -> Option<RateSource> {
+        match &self.solver {
+            Solver::Chebyshev {
+                estimate: None,
+                rate,
+                ..
+            } => Some(*rate),
+            _ => None,
+        }
+    }
+
+    /// Time of the PD matrix's factorisation (PD, Chebyshev PD, and the PD preconditioner of
+    /// L-BFGS and Newton-CG factor it once, when built); `None` for Newton.
     pub(crate) fn factor_time(&self) -> Option<std::time::Duration> {
         match &self.solver {
-            Solver::Projective { pd } => Some(pd.factor_time()),
+            Solver::Projective { pd }
+            | Solver::Chebyshev { pd, .. }
+            | Solver::PreconditionedByPd { pd, .. } => Some(pd.factor_time()),
             Solver::Newton { .. } => None,
         }
     }
@@ -277,10 +485,37 @@ impl<const D: usize> BackwardEuler<D> {
         params: PdParams,
         pins: PinMethod,
     ) -> Result<Self, SimError> {
-        check_supported(scene, "pd")?;
+        Self::projective_with(scene, params, pins, None)
+    }
+
+    /// Chebyshev-accelerated projective dynamics: `params` for the factorisation, `chebyshev` for
+    /// the acceleration; with `estimate = Some(k)` its ρ is estimated from k plain iterations on
+    /// the first step (the given ρ is the fallback), with `None` the given ρ is used.
+    pub(crate) fn chebyshev(
+        scene: &Scene<D>,
+        params: PdParams,
+        chebyshev: ChebyshevParams,
+        estimate: Option<usize>,
+        pins: PinMethod,
+    ) -> Result<Self, SimError> {
+        Self::projective_with(scene, params, pins, Some((chebyshev, estimate)))
+    }
+
+    fn projective_with(
+        scene: &Scene<D>,
+        params: PdParams,
+        pins: PinMethod,
+        chebyshev: Option<(ChebyshevParams, Option<usize>)>,
+    ) -> Result<Self, SimError> {
+        let name = if chebyshev.is_some() {
+            "pd-chebyshev"
+        } else {
+            "pd"
+        };
+        check_supported(scene, name)?;
         if pins == PinMethod::CounterForce && !scene.pinned().is_empty() {
             return Err(SimError::Unsupported {
-                integrator: "pd".to_string(),
+                integrator: name.to_string(),
                 what: "pins by counter-force (its global matrix M + h² L never holds the force \
                        Jacobian a counter-force cancels, and pinned rows replaced by the masses \
                        would only add decoupled rows to the same solve: use pin method \
@@ -296,8 +531,21 @@ impl<const D: usize> BackwardEuler<D> {
         let pd =
             ProjectiveDynamics::new(mesh.springs(), &inertia, &free, scene.time_step(), params)
                 .map_err(SimError::solver)?;
+        let pd = Box::new(pd);
+        let solver = match chebyshev {
+            None => Solver::Projective { pd },
+            Some((chebyshev, estimate)) => Solver::Chebyshev {
+                pd,
+                chebyshev: Box::new(
+                    ChebyshevPd::new(n, chebyshev).map_err(SimError::SolverParameter)?,
+                ),
+                estimate,
+                rate: RateSource::Given(chebyshev.rate),
+            },
+        };
         Ok(BackwardEuler {
-            solver: Solver::Projective { pd: Box::new(pd) },
+            solver,
+            minimizer: None,
             pins,
             parallel: params.parallel,
             inertia,
@@ -344,8 +592,8 @@ impl<const D: usize> BackwardEuler<D> {
         depth: u32,
         skip_to: u32,
     ) -> Result<SolveSummary, SimError> {
-        let params = match &self.solver {
-            Solver::Newton { newton, .. } if depth < MAX_HALVINGS => newton.params,
+        let params = match self.minimizer {
+            Some(minimizer) if depth < MAX_HALVINGS => minimizer,
             _ => return self.step_once(scene, positions, velocities, next_pinned),
         };
         let (whole, first_depth) = if depth < skip_to {
@@ -436,12 +684,13 @@ impl<const D: usize> BackwardEuler<D> {
     fn half_integrator(
         &mut self,
         scene: &Scene<D>,
-        params: NewtonParams,
+        minimizer: Minimizer,
         positions: &[SVector<f64, D>],
     ) -> Result<&mut Half<D>, SimError> {
         if self.half.is_none() {
             let half_scene = scene.clone().with_time_step(0.5 * scene.time_step())?;
-            let integrator = BackwardEuler::newton(&half_scene, params, self.pins, self.parallel)?;
+            let integrator =
+                BackwardEuler::minimizer(&half_scene, minimizer, self.pins, self.parallel)?;
             self.half = Some(Box::new(Half {
                 scene: half_scene,
                 integrator,
@@ -457,7 +706,7 @@ impl<const D: usize> BackwardEuler<D> {
         let mut memory = Vec::new();
         let mut level = Some(self);
         while let Some(integrator) = level {
-            if !matches!(integrator.solver, Solver::Newton { .. }) {
+            if integrator.minimizer.is_none() {
                 break;
             }
             memory.push(HalvingMemory::new(
@@ -482,17 +731,17 @@ impl<const D: usize> BackwardEuler<D> {
         positions: &[SVector<f64, D>],
     ) -> Result<(), SimError> {
         let deepest = MAX_HALVINGS as usize + 1;
-        let params = match &self.solver {
-            Solver::Newton { newton, .. } if memory.len() <= deepest => newton.params,
-            Solver::Newton { .. } => {
+        let params = match self.minimizer {
+            Some(minimizer) if memory.len() <= deepest => minimizer,
+            Some(_) => {
                 return Err(SimError::invalid(
                     "snapshot.halving",
                     format!("{} entries", memory.len()),
                     format!("backward Euler halves at most {MAX_HALVINGS} times"),
                 ))
             }
-            Solver::Projective { .. } if memory.is_empty() => return Ok(()),
-            Solver::Projective { .. } => {
+            None if memory.is_empty() => return Ok(()),
+            None => {
                 return Err(SimError::invalid(
                     "snapshot.halving",
                     format!("{} entries", memory.len()),
@@ -561,6 +810,65 @@ impl<const D: usize> BackwardEuler<D> {
                 SolveSummary {
                     iterations: report.iterations,
                     residual: report.gradient(),
+                    stop: report.stop,
+                    substeps: 1,
+                }
+            }
+            Solver::PreconditionedByPd {
+                method,
+                objective,
+                pd,
+                layout,
+                unknowns,
+            } => {
+                for v in 0..positions.len() {
+                    self.y[v] = target(v, &positions[v], &velocities[v]);
+                }
+                objective.set_step(&self.y, positions, unknowns);
+                objective.set_dashpot(scene.damping().dashpot, &self.x_start);
+                let (iterations, residual, stop) = match layout {
+                    None => method.minimize(objective.as_mut(), pd.as_mut(), unknowns)?,
+                    Some(layout) => {
+                        let mut full = FullLayoutPreconditioner {
+                            layout,
+                            pd: pd.as_mut(),
+                        };
+                        method.minimize(objective.as_mut(), &mut full, unknowns)?
+                    }
+                };
+                positions.copy_from_slice(objective.positions(unknowns));
+                SolveSummary {
+                    iterations,
+                    residual,
+                    stop,
+                    substeps: 1,
+                }
+            }
+            Solver::Chebyshev {
+                pd,
+                chebyshev,
+                estimate,
+                rate,
+            } => {
+                for v in 0..positions.len() {
+                    self.y[v] = target(v, &positions[v], &velocities[v]);
+                }
+                positions.copy_from_slice(&self.y);
+                let springs = scene.mesh().springs();
+                if let Some(iterations) = estimate.take() {
+                    let given = rate.rate();
+                    *rate = match pd.estimate_rate(springs, &self.y, positions, iterations) {
+                        Some(r) => RateSource::Estimated(r),
+                        None => RateSource::Fallback(given),
+                    };
+                    chebyshev
+                        .set_rate(rate.rate())
+                        .map_err(SimError::SolverParameter)?;
+                }
+                let report = chebyshev.solve(pd, springs, &self.y, positions);
+                SolveSummary {
+                    iterations: report.iterations,
+                    residual: report.changes.last().copied().unwrap_or(0.0),
                     stop: report.stop,
                     substeps: 1,
                 }

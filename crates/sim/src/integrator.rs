@@ -34,6 +34,22 @@ pub enum Integrator {
     /// Backward Euler solved approximately by projective dynamics (Liu et al. 2013) with
     /// [`Settings::pd`]'s iteration budget; converges to the Newton solution as iterations grow.
     ProjectiveDynamics,
+    /// Backward Euler solved by L-BFGS (Liu, Bouaziz and Kavan 2017) to [`Settings::lbfgs`]'s
+    /// tolerance: the same Φ as Newton (every force, damping and pin method), the prefactored PD
+    /// matrix K(A + h²L)Kᵀ as the initial inverse Hessian (one solve per iteration, no
+    /// factorisation per step), a line search that never accepts a rise of Φ. A step that does
+    /// not converge is halved as Newton's is.
+    Lbfgs,
+    /// Backward Euler solved by truncated Newton ([`Settings::newton_cg`]): conjugate gradient on
+    /// the exact Hessian, preconditioned by the PD factor, with Eisenstat–Walker forcing terms and
+    /// truncation at negative curvature (no factorisation per iteration). Every force, damping and
+    /// pin method Newton supports; halved as Newton's.
+    NewtonCg,
+    /// Projective dynamics with Chebyshev acceleration (Wang 2015, [`Settings::chebyshev`]): ρ
+    /// estimated from plain PD on the first step ([`Settings::chebyshev_estimate`]), and a restart
+    /// to the plain PD iterate whenever Φ would rise, so that it never gains energy where plain PD
+    /// does not. The same terms as [`Integrator::ProjectiveDynamics`].
+    ChebyshevPd,
 }
 
 impl Integrator {
@@ -44,10 +60,13 @@ impl Integrator {
         Integrator::Linearized,
         Integrator::Newton,
         Integrator::ProjectiveDynamics,
+        Integrator::Lbfgs,
+        Integrator::NewtonCg,
+        Integrator::ChebyshevPd,
     ];
 
     /// The name used in scene files and on the command line (`explicit-euler`, `symplectic-euler`,
-    /// `linearized`, `newton`, `pd`).
+    /// `linearized`, `newton`, `pd`, `lbfgs`, `newton-cg`, `pd-chebyshev`).
     pub fn name(&self) -> &'static str {
         match self {
             Integrator::ExplicitEuler => "explicit-euler",
@@ -55,19 +74,25 @@ impl Integrator {
             Integrator::Linearized => "linearized",
             Integrator::Newton => "newton",
             Integrator::ProjectiveDynamics => "pd",
+            Integrator::Lbfgs => "lbfgs",
+            Integrator::NewtonCg => "newton-cg",
+            Integrator::ChebyshevPd => "pd-chebyshev",
         }
     }
 
     /// What the residual in this integrator's [`hooke_solvers::SolveSummary::residual`] is, and
     /// its unit: (quantity, unit), `None` for the explicit methods, which solve nothing.
-    /// - `newton`: the relative gradient ‖∇Φ(x)‖ / ‖∇Φ(x⁰)‖ (dimensionless; the largest over the
-    ///   pieces of a halved step);
-    /// - `pd`: the largest change of a position coordinate in the last iteration (m);
+    /// - `newton`, `lbfgs`, `newton-cg`: the relative gradient ‖∇Φ(x)‖ / ‖∇Φ(x⁰)‖ (dimensionless;
+    ///   the largest over the pieces of a halved step);
+    /// - `pd`, `pd-chebyshev`: the largest change of a position coordinate in the last iteration
+    ///   (m);
     /// - `linearized`: the relative linear residual ‖b − A v‖ / ‖b‖ (dimensionless).
     pub fn solver_residual(&self) -> Option<(&'static str, &'static str)> {
         match self {
-            Integrator::Newton => Some(("relative gradient |grad Phi(x)| / |grad Phi(x0)|", "1")),
-            Integrator::ProjectiveDynamics => {
+            Integrator::Newton | Integrator::Lbfgs | Integrator::NewtonCg => {
+                Some(("relative gradient |grad Phi(x)| / |grad Phi(x0)|", "1"))
+            }
+            Integrator::ProjectiveDynamics | Integrator::ChebyshevPd => {
                 Some(("largest position change in the last iteration", "m"))
             }
             Integrator::Linearized => Some(("relative linear residual |b - A v| / |b|", "1")),
@@ -108,6 +133,9 @@ impl FromStr for Integrator {
             "linearized" | "linearised" | "linearized-euler" => Ok(Integrator::Linearized),
             "newton" | "backward-euler" => Ok(Integrator::Newton),
             "pd" | "projective-dynamics" => Ok(Integrator::ProjectiveDynamics),
+            "lbfgs" | "l-bfgs" | "quasi-newton" => Ok(Integrator::Lbfgs),
+            "newton-cg" | "truncated-newton" => Ok(Integrator::NewtonCg),
+            "pd-chebyshev" | "chebyshev" => Ok(Integrator::ChebyshevPd),
             other => Err(UnknownIntegrator {
                 name: other.to_string(),
             }),
@@ -349,9 +377,24 @@ pub struct Settings {
     pub linearized: LinearizedParams,
     /// Newton's settings (default: relative gradient 1e-8).
     pub newton: hooke_solvers::NewtonParams,
-    /// Projective dynamics' settings (default: 10 iterations).
+    /// Projective dynamics' settings (default: 10 iterations). Its factorisation settings also
+    /// serve the PD matrix of `lbfgs`, `newton-cg` and `pd-chebyshev`.
     pub pd: hooke_solvers::PdParams,
+    /// L-BFGS's settings (default: relative gradient 1e-8, 100 iterations, history 5).
+    pub lbfgs: hooke_solvers::LbfgsParams,
+    /// Newton-CG's settings (default: relative gradient 1e-8, 100 iterations).
+    pub newton_cg: hooke_solvers::NewtonCgParams,
+    /// Chebyshev PD's settings (default: 10 iterations; its `rate` is the fallback when the
+    /// estimate does not form, or the ρ used when [`Settings::chebyshev_estimate`] is `None`).
+    pub chebyshev: hooke_solvers::ChebyshevParams,
+    /// Plain PD iterations from which Chebyshev PD estimates ρ on its first step
+    /// ([`hooke_solvers::ProjectiveDynamics::estimate_rate`]), in 4..=[`MAX_RATE_ESTIMATE`];
+    /// `None` uses [`Settings::chebyshev`]'s `rate` as given. Default `Some(20)`.
+    pub chebyshev_estimate: Option<usize>,
 }
+
+/// The most plain PD iterations [`Settings::chebyshev_estimate`] may ask for.
+pub const MAX_RATE_ESTIMATE: usize = 10_000;
 
 impl Default for Settings {
     fn default() -> Self {
@@ -365,6 +408,10 @@ impl Default for Settings {
             linearized: LinearizedParams::default(),
             newton: hooke_solvers::NewtonParams::default(),
             pd: hooke_solvers::PdParams::default(),
+            lbfgs: hooke_solvers::LbfgsParams::default(),
+            newton_cg: hooke_solvers::NewtonCgParams::default(),
+            chebyshev: hooke_solvers::ChebyshevParams::default(),
+            chebyshev_estimate: Some(20),
         }
     }
 }
@@ -438,6 +485,18 @@ impl Settings {
         self.linearized.validate()?;
         self.newton.validate()?;
         self.pd.validate()?;
+        self.lbfgs.validate()?;
+        self.newton_cg.validate()?;
+        self.chebyshev.validate()?;
+        if let Some(k) = self.chebyshev_estimate {
+            if !(4..=MAX_RATE_ESTIMATE).contains(&k) {
+                return Err(SimError::invalid(
+                    "chebyshev_estimate",
+                    k,
+                    format!("must be in 4..={MAX_RATE_ESTIMATE} plain PD iterations"),
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -475,7 +534,8 @@ impl Settings {
                 value,
                 format!(
                     "{integrator} is explicit and solves no system; iterations and tolerance apply \
-                     to linearized, newton and pd"
+                     to the implicit integrators (linearized, newton, pd, lbfgs, newton-cg, \
+                     pd-chebyshev)"
                 ),
             )
         };
@@ -485,6 +545,9 @@ impl Settings {
                 Integrator::Linearized => self.linearized.max_iterations = iterations,
                 Integrator::Newton => self.newton.max_iterations = iterations,
                 Integrator::ProjectiveDynamics => self.pd.max_iterations = iterations,
+                Integrator::Lbfgs => self.lbfgs.max_iterations = iterations,
+                Integrator::NewtonCg => self.newton_cg.max_iterations = iterations,
+                Integrator::ChebyshevPd => self.chebyshev.max_iterations = iterations,
                 _ => return Err(no_solver("iterations", iterations.to_string())),
             }
         }
@@ -494,6 +557,9 @@ impl Settings {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
                 Integrator::Newton => self.newton.tolerance = tolerance,
                 Integrator::ProjectiveDynamics => self.pd.tolerance = tolerance,
+                Integrator::Lbfgs => self.lbfgs.tolerance = tolerance,
+                Integrator::NewtonCg => self.newton_cg.tolerance = tolerance,
+                Integrator::ChebyshevPd => self.chebyshev.tolerance = tolerance,
                 _ => return Err(no_solver("tolerance", tolerance.to_string())),
             }
         }
@@ -532,6 +598,21 @@ impl Settings {
             Integrator::ProjectiveDynamics => SolverOptions {
                 iterations: Some(self.pd.max_iterations),
                 tolerance: Some(self.pd.tolerance),
+                ..SolverOptions::default()
+            },
+            Integrator::Lbfgs => SolverOptions {
+                iterations: Some(self.lbfgs.max_iterations),
+                tolerance: Some(self.lbfgs.tolerance),
+                ..SolverOptions::default()
+            },
+            Integrator::NewtonCg => SolverOptions {
+                iterations: Some(self.newton_cg.max_iterations),
+                tolerance: Some(self.newton_cg.tolerance),
+                ..SolverOptions::default()
+            },
+            Integrator::ChebyshevPd => SolverOptions {
+                iterations: Some(self.chebyshev.max_iterations),
+                tolerance: Some(self.chebyshev.tolerance),
                 ..SolverOptions::default()
             },
             _ => SolverOptions::default(),

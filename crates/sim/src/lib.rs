@@ -41,6 +41,7 @@ pub use contact::{Contact, Shape};
 pub use damping::Damping;
 pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;
+pub use implicit::RateSource;
 pub use integrator::{
     parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, Settings,
     SolverOptions, UnknownPinMethod,

@@ -8,7 +8,7 @@ use nalgebra::SVector;
 use rayon::prelude::*;
 
 use crate::contact::StepProjection;
-use crate::implicit::BackwardEuler;
+use crate::implicit::{BackwardEuler, Minimizer};
 use crate::integrator::{Integrator, Settings};
 use crate::linearized::Linearized;
 use crate::stability::{stability_bound, StabilityBound};
@@ -146,15 +146,29 @@ impl<const D: usize> Simulation<D> {
             1
         };
         let implicit = match settings.integrator {
-            Integrator::Newton => Some(BackwardEuler::newton(
-                &scene,
-                settings.newton,
-                settings.pins,
-                settings.parallel,
-            )?),
+            Integrator::Newton | Integrator::Lbfgs | Integrator::NewtonCg => {
+                let minimizer = match settings.integrator {
+                    Integrator::Newton => Minimizer::Newton(settings.newton),
+                    Integrator::Lbfgs => Minimizer::Lbfgs(settings.lbfgs, settings.pd),
+                    _ => Minimizer::NewtonCg(settings.newton_cg, settings.pd),
+                };
+                Some(BackwardEuler::minimizer(
+                    &scene,
+                    minimizer,
+                    settings.pins,
+                    settings.parallel,
+                )?)
+            }
             Integrator::ProjectiveDynamics => Some(BackwardEuler::projective(
                 &scene,
                 settings.pd,
+                settings.pins,
+            )?),
+            Integrator::ChebyshevPd => Some(BackwardEuler::chebyshev(
+                &scene,
+                settings.pd,
+                settings.chebyshev,
+                settings.chebyshev_estimate,
                 settings.pins,
             )?),
             _ => None,
@@ -243,6 +257,12 @@ impl<const D: usize> Simulation<D> {
     /// The settings in use.
     pub fn settings(&self) -> Settings {
         self.settings
+    }
+
+    /// Chebyshev PD's ρ and whether it was estimated, given, or the fallback; `None` for the other
+    /// integrators, and before the first step when ρ is to be estimated.
+    pub fn chebyshev_rate(&self) -> Option<crate::RateSource> {
+        self.implicit.as_ref().and_then(|i| i.chebyshev_rate())
     }
 
     /// Substeps per frame (1 for implicit methods).

@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
+use crate::params::{self, ParamError};
 use crate::projective::ProjectiveDynamics;
 use crate::report::StopReason;
 
@@ -62,59 +63,36 @@ impl Default for ChebyshevParams {
 /// The most iterations [`ChebyshevParams::max_iterations`] may ask for.
 pub const CHEBYSHEV_MAX_ITERATIONS: usize = 1 << 24;
 
-/// A parameter of [`ChebyshevParams`] outside its allowed range.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("ChebyshevParams::{field} = {value} is outside its allowed range: {allowed}")]
-pub struct ChebyshevParamError {
-    /// The field's name.
-    pub field: &'static str,
-    /// Its value.
-    pub value: String,
-    /// The allowed range.
-    pub allowed: &'static str,
-}
-
 impl ChebyshevParams {
     /// Check every field.
     ///
     /// # Errors
-    /// [`ChebyshevParamError`] naming the first field outside its range: `max_iterations` in
+    /// [`ParamError`] naming the first field outside its range: `max_iterations` in
     /// 1..=[`CHEBYSHEV_MAX_ITERATIONS`], `rate` in (0, 1), `under_relaxation` in (0, 1],
     /// `tolerance` finite and ≥ 0 (`delay` may be any value: at or beyond the budget it is plain
     /// PD).
-    pub fn validate(&self) -> Result<(), ChebyshevParamError> {
-        let err = |field, value: String, allowed| {
-            Err(ChebyshevParamError {
-                field,
-                value,
-                allowed,
-            })
-        };
-        if !(1..=CHEBYSHEV_MAX_ITERATIONS).contains(&self.max_iterations) {
-            return err(
-                "max_iterations",
-                self.max_iterations.to_string(),
-                "1 ..= 2^24",
-            );
-        }
-        if !(self.rate > 0.0 && self.rate < 1.0) {
-            return err("rate", format!("{:?}", self.rate), "(0, 1)");
-        }
-        if !(self.under_relaxation > 0.0 && self.under_relaxation <= 1.0) {
-            return err(
-                "under_relaxation",
-                format!("{:?}", self.under_relaxation),
-                "(0, 1]",
-            );
-        }
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
-            return err(
-                "tolerance",
-                format!("{:?}", self.tolerance),
-                "finite and >= 0",
-            );
-        }
-        Ok(())
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::count_in(
+            "ChebyshevParams::max_iterations",
+            self.max_iterations,
+            1,
+            CHEBYSHEV_MAX_ITERATIONS,
+            "in 1 ..= 2^24",
+        )?;
+        params::real(
+            "ChebyshevParams::rate",
+            self.rate,
+            self.rate > 0.0 && self.rate < 1.0,
+            "in (0, 1)",
+        )?;
+        let gamma = self.under_relaxation;
+        params::real(
+            "ChebyshevParams::under_relaxation",
+            gamma,
+            gamma > 0.0 && gamma <= 1.0,
+            "in (0, 1]",
+        )?;
+        params::non_negative("ChebyshevParams::tolerance", self.tolerance)
     }
 }
 
@@ -153,8 +131,8 @@ impl<const D: usize> ChebyshevPd<D> {
     /// Accelerated PD for meshes of `vertex_count` vertices.
     ///
     /// # Errors
-    /// [`ChebyshevParamError`] if `params` is invalid.
-    pub fn new(vertex_count: usize, params: ChebyshevParams) -> Result<Self, ChebyshevParamError> {
+    /// [`ParamError`] if `params` is invalid.
+    pub fn new(vertex_count: usize, params: ChebyshevParams) -> Result<Self, ParamError> {
         params.validate()?;
         Ok(ChebyshevPd {
             params,
@@ -167,6 +145,20 @@ impl<const D: usize> ChebyshevPd<D> {
     /// The settings.
     pub fn params(&self) -> ChebyshevParams {
         self.params
+    }
+
+    /// Set ρ, for example to an estimate from [`ProjectiveDynamics::estimate_rate`].
+    ///
+    /// # Errors
+    /// [`ParamError`] if `rate` is not in (0, 1); the settings are then unchanged.
+    pub fn set_rate(&mut self, rate: f64) -> Result<(), ParamError> {
+        let params = ChebyshevParams {
+            rate,
+            ..self.params
+        };
+        params.validate()?;
+        self.params = params;
+        Ok(())
     }
 
     /// Solve the step with inertial target `y` as [`ProjectiveDynamics::solve`] does (`x` the

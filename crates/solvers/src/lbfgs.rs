@@ -25,6 +25,7 @@ use std::time::{Duration, Instant};
 
 use crate::newton::NewtonProblem;
 use crate::operator::{dot, Preconditioner};
+use crate::params::{self, ParamError};
 use crate::report::StopReason;
 
 /// Settings of [`Lbfgs`].
@@ -63,62 +64,43 @@ pub const LBFGS_MAX_HISTORY: usize = 256;
 /// reserved up to this size, never more).
 pub const LBFGS_MAX_ITERATIONS: usize = 1 << 24;
 
-/// A parameter of [`LbfgsParams`] outside its allowed range.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("LbfgsParams::{field} = {value} is outside its allowed range: {allowed}")]
-pub struct LbfgsParamError {
-    /// The field's name.
-    pub field: &'static str,
-    /// Its value, as written by `{:?}`.
-    pub value: String,
-    /// The allowed range.
-    pub allowed: &'static str,
-}
-
 impl LbfgsParams {
     /// Check every field.
     ///
     /// # Errors
-    /// [`LbfgsParamError`] naming the first field outside its range: `max_iterations` in
+    /// [`ParamError`] naming the first field outside its range: `max_iterations` in
     /// 1..=[`LBFGS_MAX_ITERATIONS`], `tolerance` finite and ≥ 0, `history` in
     /// 1..=[`LBFGS_MAX_HISTORY`], `armijo` in (0, 1), `max_halvings` in 0..=1100 (2⁻¹¹⁰⁰ is below
     /// the smallest double).
-    pub fn validate(&self) -> Result<(), LbfgsParamError> {
-        let err = |field, value: String, allowed| {
-            Err(LbfgsParamError {
-                field,
-                value,
-                allowed,
-            })
-        };
-        if !(1..=LBFGS_MAX_ITERATIONS).contains(&self.max_iterations) {
-            return err(
-                "max_iterations",
-                format!("{}", self.max_iterations),
-                "1 ..= 2^24",
-            );
-        }
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
-            return err(
-                "tolerance",
-                format!("{:?}", self.tolerance),
-                "finite and >= 0",
-            );
-        }
-        if !(1..=LBFGS_MAX_HISTORY).contains(&self.history) {
-            return err("history", format!("{}", self.history), "1 ..= 256");
-        }
-        if !(self.armijo > 0.0 && self.armijo < 1.0) {
-            return err("armijo", format!("{:?}", self.armijo), "(0, 1)");
-        }
-        if self.max_halvings > 1100 {
-            return err(
-                "max_halvings",
-                format!("{}", self.max_halvings),
-                "0 ..= 1100",
-            );
-        }
-        Ok(())
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::count_in(
+            "LbfgsParams::max_iterations",
+            self.max_iterations,
+            1,
+            LBFGS_MAX_ITERATIONS,
+            "in 1 ..= 2^24",
+        )?;
+        params::non_negative("LbfgsParams::tolerance", self.tolerance)?;
+        params::count_in(
+            "LbfgsParams::history",
+            self.history,
+            1,
+            LBFGS_MAX_HISTORY,
+            "in 1 ..= 256",
+        )?;
+        params::real(
+            "LbfgsParams::armijo",
+            self.armijo,
+            self.armijo > 0.0 && self.armijo < 1.0,
+            "in (0, 1)",
+        )?;
+        params::count_in(
+            "LbfgsParams::max_halvings",
+            self.max_halvings,
+            0,
+            1100,
+            "in 0 ..= 1100",
+        )
     }
 }
 
@@ -158,7 +140,7 @@ impl LbfgsReport {
 pub enum LbfgsError {
     /// The settings are invalid.
     #[error(transparent)]
-    Params(#[from] LbfgsParamError),
+    Params(#[from] ParamError),
     /// Φ or its gradient became NaN or infinite.
     #[error("non-finite objective or gradient at iteration {}", report.iterations)]
     NonFinite {
@@ -197,8 +179,8 @@ impl Lbfgs {
     /// An L-BFGS solver for problems with `n` unknowns.
     ///
     /// # Errors
-    /// [`LbfgsParamError`] if `params` is invalid ([`LbfgsParams::validate`]).
-    pub fn new(n: usize, params: LbfgsParams) -> Result<Self, LbfgsParamError> {
+    /// [`ParamError`] if `params` is invalid ([`LbfgsParams::validate`]).
+    pub fn new(n: usize, params: LbfgsParams) -> Result<Self, ParamError> {
         params.validate()?;
         let m = params.history;
         Ok(Lbfgs {

@@ -50,14 +50,11 @@ mod report;
 
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
-pub use chebyshev::{
-    ChebyshevParamError, ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS,
-};
+pub use chebyshev::{ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS};
 pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky};
 pub use jacobi::{Jacobi, JacobiParams};
 pub use lbfgs::{
-    Lbfgs, LbfgsError, LbfgsParamError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY,
-    LBFGS_MAX_ITERATIONS,
+    Lbfgs, LbfgsError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY, LBFGS_MAX_ITERATIONS,
 };
 pub use newton::{
     IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
@@ -65,8 +62,7 @@ pub use newton::{
     MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
 };
 pub use newton_cg::{
-    NewtonCg, NewtonCgError, NewtonCgParamError, NewtonCgParams, NewtonCgReport,
-    NEWTON_CG_MAX_ITERATIONS,
+    NewtonCg, NewtonCgError, NewtonCgParams, NewtonCgReport, NEWTON_CG_MAX_ITERATIONS,
 };
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use params::{ParamError, MAX_THREADS};

@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 
 use crate::newton::NewtonProblem;
 use crate::operator::{dot, LinearOperator, Preconditioner, Symmetric};
+use crate::params::{self, ParamError};
 use crate::report::StopReason;
 
 /// Settings of [`NewtonCg`].
@@ -64,79 +65,62 @@ impl Default for NewtonCgParams {
 /// [`NewtonCgParams::max_cg_iterations`] may ask for.
 pub const NEWTON_CG_MAX_ITERATIONS: usize = 1 << 24;
 
-/// A parameter of [`NewtonCgParams`] outside its allowed range.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("NewtonCgParams::{field} = {value} is outside its allowed range: {allowed}")]
-pub struct NewtonCgParamError {
-    /// The field's name.
-    pub field: &'static str,
-    /// Its value.
-    pub value: String,
-    /// The allowed range.
-    pub allowed: &'static str,
-}
-
 impl NewtonCgParams {
     /// Check every field.
     ///
     /// # Errors
-    /// [`NewtonCgParamError`] naming the first field outside its range (each range is in the
-    /// field's documentation; iteration limits in 1..=[`NEWTON_CG_MAX_ITERATIONS`], `tolerance`
-    /// finite and ≥ 0, `max_halvings` ≤ 1100).
-    pub fn validate(&self) -> Result<(), NewtonCgParamError> {
-        let err = |field, value: String, allowed| {
-            Err(NewtonCgParamError {
-                field,
-                value,
-                allowed,
-            })
-        };
-        let iterations = 1..=NEWTON_CG_MAX_ITERATIONS;
-        if !iterations.contains(&self.max_iterations) {
-            return err(
-                "max_iterations",
-                self.max_iterations.to_string(),
-                "1 ..= 2^24",
-            );
-        }
-        if !iterations.contains(&self.max_cg_iterations) {
-            return err(
-                "max_cg_iterations",
-                self.max_cg_iterations.to_string(),
-                "1 ..= 2^24",
-            );
-        }
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
-            return err(
-                "tolerance",
-                format!("{:?}", self.tolerance),
-                "finite and >= 0",
-            );
-        }
-        if !(self.forcing_max > 0.0 && self.forcing_max < 1.0) {
-            return err("forcing_max", format!("{:?}", self.forcing_max), "(0, 1)");
-        }
-        if !(self.forcing_gamma > 0.0 && self.forcing_gamma <= 1.0) {
-            return err(
-                "forcing_gamma",
-                format!("{:?}", self.forcing_gamma),
-                "(0, 1]",
-            );
-        }
-        if !(self.forcing_alpha > 1.0 && self.forcing_alpha <= 2.0) {
-            return err(
-                "forcing_alpha",
-                format!("{:?}", self.forcing_alpha),
-                "(1, 2]",
-            );
-        }
-        if !(self.armijo > 0.0 && self.armijo < 1.0) {
-            return err("armijo", format!("{:?}", self.armijo), "(0, 1)");
-        }
-        if self.max_halvings > 1100 {
-            return err("max_halvings", self.max_halvings.to_string(), "0 ..= 1100");
-        }
-        Ok(())
+    /// [`ParamError`] naming the first field outside its range (each range is in the field's
+    /// documentation; iteration limits in 1..=[`NEWTON_CG_MAX_ITERATIONS`], `tolerance` finite and
+    /// ≥ 0, `max_halvings` ≤ 1100).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let limit = NEWTON_CG_MAX_ITERATIONS;
+        params::count_in(
+            "NewtonCgParams::max_iterations",
+            self.max_iterations,
+            1,
+            limit,
+            "in 1 ..= 2^24",
+        )?;
+        params::count_in(
+            "NewtonCgParams::max_cg_iterations",
+            self.max_cg_iterations,
+            1,
+            limit,
+            "in 1 ..= 2^24",
+        )?;
+        params::non_negative("NewtonCgParams::tolerance", self.tolerance)?;
+        let (eta, gamma, alpha) = (self.forcing_max, self.forcing_gamma, self.forcing_alpha);
+        params::real(
+            "NewtonCgParams::forcing_max",
+            eta,
+            eta > 0.0 && eta < 1.0,
+            "in (0, 1)",
+        )?;
+        params::real(
+            "NewtonCgParams::forcing_gamma",
+            gamma,
+            gamma > 0.0 && gamma <= 1.0,
+            "in (0, 1]",
+        )?;
+        params::real(
+            "NewtonCgParams::forcing_alpha",
+            alpha,
+            alpha > 1.0 && alpha <= 2.0,
+            "in (1, 2]",
+        )?;
+        params::real(
+            "NewtonCgParams::armijo",
+            self.armijo,
+            self.armijo > 0.0 && self.armijo < 1.0,
+            "in (0, 1)",
+        )?;
+        params::count_in(
+            "NewtonCgParams::max_halvings",
+            self.max_halvings,
+            0,
+            1100,
+            "in 0 ..= 1100",
+        )
     }
 }
 
@@ -176,7 +160,7 @@ impl NewtonCgReport {
 pub enum NewtonCgError {
     /// The settings are invalid.
     #[error(transparent)]
-    Params(#[from] NewtonCgParamError),
+    Params(#[from] ParamError),
     /// Φ, its gradient or the Hessian product became NaN or infinite.
     #[error("non-finite objective, gradient or curvature at iteration {}", report.iterations)]
     NonFinite {
@@ -208,8 +192,8 @@ impl NewtonCg {
     /// A Newton-CG solver for problems with `n` unknowns.
     ///
     /// # Errors
-    /// [`NewtonCgParamError`] if `params` is invalid.
-    pub fn new(n: usize, params: NewtonCgParams) -> Result<Self, NewtonCgParamError> {
+    /// [`ParamError`] if `params` is invalid.
+    pub fn new(n: usize, params: NewtonCgParams) -> Result<Self, ParamError> {
         params.validate()?;
         Ok(NewtonCg {
             params,

@@ -87,7 +87,7 @@ fn invalid_settings_are_refused_with_the_field_named() {
     ];
     for (params, field) in cases.iter().zip(fields) {
         let error = Lbfgs::new(3, *params).unwrap_err();
-        assert_eq!(error.field, field, "{params:?}");
+        assert_eq!(error.field(), format!("LbfgsParams::{field}"), "{params:?}");
         assert!(error.to_string().contains(field));
     }
 }

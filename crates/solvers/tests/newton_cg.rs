@@ -128,7 +128,10 @@ fn invalid_settings_are_refused_with_the_field_named() {
             "armijo",
         ),
     ] {
-        assert_eq!(NewtonCg::new(3, params).unwrap_err().field, field);
+        assert_eq!(
+            NewtonCg::new(3, params).unwrap_err().field(),
+            format!("NewtonCgParams::{field}")
+        );
     }
 }
 

@@ -6,10 +6,11 @@
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
-    BackwardEulerStep, BlockJacobi, CgParams, CholeskyError, CholeskyParams, ConjugateGradient,
-    Identity, IndefinitePolicy, Jacobi, JacobiParams, Newton, NewtonError, NewtonParams,
-    NewtonProblem, ParamError, PdError, PdParams, ProjectiveDynamics, Relaxation, SolveError,
-    SparseCholesky, StopReason,
+    BackwardEulerStep, BlockJacobi, CgParams, ChebyshevParams, ChebyshevPd, CholeskyError,
+    CholeskyParams, ConjugateGradient, Identity, IndefinitePolicy, Jacobi, JacobiParams, Lbfgs,
+    LbfgsError, LbfgsParams, Newton, NewtonCg, NewtonCgError, NewtonCgParams, NewtonError,
+    NewtonParams, NewtonProblem, ParamError, PdError, PdParams, ProjectiveDynamics, Relaxation,
+    SolveError, SparseCholesky, StopReason,
 };
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
@@ -326,6 +327,102 @@ proptest! {
                 let report = pd.solve(mesh.springs(), &y, &mut x).unwrap();
                 prop_assert!(report.iterations <= params.max_iterations.min(BOUND));
                 prop_assert!(x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+            }
+        }
+    }
+
+    #[test]
+    fn quasi_newton_and_accelerated_pd_settings_are_refused_or_finish(
+        field in 0..17usize,
+        real in extreme_real(),
+        count in extreme_count(),
+    ) {
+        let (mut step, start, y) = cloth_problem();
+        let n = 4;
+        let mesh = generators::cloth(n, 1e3).unwrap();
+        let free = FreeDofs::new(mesh.vertex_count(), &[0, n as u32 - 1]).unwrap();
+        let mut pd = ProjectiveDynamics::<3>::new(
+            mesh.springs(), mesh.masses(), &free, 1.0 / 30.0, PdParams::default(),
+        ).unwrap();
+        let mut lbfgs = LbfgsParams::default();
+        let mut cg = NewtonCgParams::default();
+        let mut cheb = ChebyshevParams { tolerance: 1e-9, ..ChebyshevParams::default() };
+        let name = match field {
+            0 => { lbfgs.max_iterations = count; "LbfgsParams::max_iterations" }
+            1 => { lbfgs.tolerance = real; "LbfgsParams::tolerance" }
+            2 => { lbfgs.history = count; "LbfgsParams::history" }
+            3 => { lbfgs.armijo = real; "LbfgsParams::armijo" }
+            4 => { lbfgs.max_halvings = count; "LbfgsParams::max_halvings" }
+            5 => { cg.max_iterations = count; "NewtonCgParams::max_iterations" }
+            6 => { cg.max_cg_iterations = count; "NewtonCgParams::max_cg_iterations" }
+            7 => { cg.tolerance = real; "NewtonCgParams::tolerance" }
+            8 => { cg.forcing_max = real; "NewtonCgParams::forcing_max" }
+            9 => { cg.forcing_gamma = real; "NewtonCgParams::forcing_gamma" }
+            10 => { cg.forcing_alpha = real; "NewtonCgParams::forcing_alpha" }
+            11 => { cg.armijo = real; "NewtonCgParams::armijo" }
+            12 => { cg.max_halvings = count; "NewtonCgParams::max_halvings" }
+            13 => { cheb.max_iterations = count; "ChebyshevParams::max_iterations" }
+            14 => { cheb.rate = real; "ChebyshevParams::rate" }
+            15 => { cheb.under_relaxation = real; "ChebyshevParams::under_relaxation" }
+            _ => { cheb.tolerance = real; "ChebyshevParams::tolerance" }
+        };
+        let dim = step.dim();
+        if field < 5 {
+            let built = Lbfgs::new(dim, lbfgs);
+            match lbfgs.validate() {
+                Err(e) => {
+                    prop_assert_eq!(e.field(), name);
+                    prop_assert!(matches!(&built, Err(b) if same(b, &e)), "{built:?}");
+                }
+                Ok(()) => {
+                    // A zero tolerance runs to the limit (or the round-off floor): bound it.
+                    if lbfgs.max_iterations > BOUND && lbfgs.tolerance == 0.0 {
+                        return Ok(());
+                    }
+                    let mut x = start.clone();
+                    match built.unwrap().minimize(&mut step, &mut pd, &mut x) {
+                        Ok(r) => prop_assert!(r.iterations <= lbfgs.max_iterations.min(BOUND)),
+                        // A search of zero halvings may find no decrease: a typed error.
+                        Err(LbfgsError::LineSearchFailed { .. }) => {}
+                        Err(e) => prop_assert!(false, "{e}"),
+                    }
+                }
+            }
+        } else if field < 13 {
+            let built = NewtonCg::new(dim, cg);
+            match cg.validate() {
+                Err(e) => {
+                    prop_assert_eq!(e.field(), name);
+                    prop_assert!(matches!(&built, Err(b) if same(b, &e)), "{built:?}");
+                }
+                Ok(()) => {
+                    if cg.max_iterations > BOUND && cg.tolerance == 0.0 {
+                        return Ok(());
+                    }
+                    let mut x = start.clone();
+                    match built.unwrap().minimize(&mut step, &mut pd, &mut x) {
+                        Ok(r) => prop_assert!(r.iterations <= cg.max_iterations.min(BOUND)),
+                        Err(NewtonCgError::LineSearchFailed { .. }) => {}
+                        Err(e) => prop_assert!(false, "{e}"),
+                    }
+                }
+            }
+        } else {
+            let built = ChebyshevPd::<3>::new(mesh.vertex_count(), cheb);
+            match cheb.validate() {
+                Err(e) => {
+                    prop_assert_eq!(e.field(), name);
+                    prop_assert!(matches!(&built, Err(b) if same(b, &e)), "{built:?}");
+                }
+                Ok(()) => {
+                    if cheb.max_iterations > BOUND && cheb.tolerance == 0.0 {
+                        return Ok(());
+                    }
+                    let mut x = y.clone();
+                    let r = built.unwrap().solve(&mut pd, mesh.springs(), &y, &mut x);
+                    prop_assert!(r.iterations <= cheb.max_iterations.min(BOUND));
+                    prop_assert!(x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+                }
             }
         }
     }

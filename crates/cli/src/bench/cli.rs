@@ -9,6 +9,7 @@ use crate::bench::{
     ErrorMeter, HardCaseOptions, PrepareOptions, Record, SolverSpec, StartState, SweepOptions,
     TimingOptions, HARD_CASES, HARD_INTEGRATORS,
 };
+use crate::bench::{format_time_error, read_csv, time_error, TimeErrorOptions};
 
 /// Arguments of `hooke bench`.
 #[derive(clap::Args, Clone, Debug)]
@@ -35,6 +36,11 @@ pub struct BenchArgs {
     /// x_star.obj and SOLVER-SETTING.obj for each run (not with --sweep or --hard-cases).
     #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "hard_cases"])]
     pub frames: Option<PathBuf>,
+    /// Overlay records from another implementation on the plot, repeatable: a CSV with this
+    /// bench's columns (`--csv` writes them); its records for this scene become series of their
+    /// own, named FILE-STEM:SOLVER.
+    #[arg(long, value_name = "FILE.csv", conflicts_with_all = ["sweep", "hard_cases", "time_error"])]
+    pub compare: Vec<PathBuf>,
     /// Plot error against time (or, with --sweep, time against vertices) on log axes as a PNG.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
@@ -51,6 +57,14 @@ pub struct BenchArgs {
     /// Run every integrator on every hard case of SCENES.md and print a matrix.
     #[arg(long)]
     pub hard_cases: bool,
+    /// Run every integrator on the scene for 1 s at its step h and report the position error at
+    /// the end against backward Euler at h/64 and symplectic Euler at its stable step (SPEC §8's
+    /// time-discretisation error); --json writes the report.
+    #[arg(long, conflicts_with_all = ["sweep", "hard_cases", "frames"])]
+    pub time_error: bool,
+    /// With --time-error: the simulated time (s).
+    #[arg(long, default_value_t = 1.0, requires = "time_error")]
+    pub duration: f64,
     /// With --hard-cases: frames per run.
     #[arg(long, default_value_t = 30, requires = "hard_cases")]
     pub hard_frames: usize,
@@ -80,7 +94,8 @@ Examples:
   hooke bench cloth-40 --json out/cloth-40.json --plot out/cloth-40.png
   hooke bench beam-4 --solver pd:1,10,100 --solver newton:1,2,3
   hooke bench --sweep N=10,20,40,80,160 --solver pd:10 --solver newton-tol:1e-8
-  hooke bench --hard-cases";
+  hooke bench --hard-cases
+  hooke bench cloth-40 --time-error --json out/cloth-40-time-error.json";
 
 /// Run `hooke bench` with `args`: print the table on stdout and write the files asked for.
 ///
@@ -121,6 +136,20 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
             &mut progress,
         )?;
         print!("{}", format_hard_cases(&results));
+        return Ok(());
+    }
+
+    if args.time_error {
+        let setup = load_setup(&args.scene)?;
+        let options = TimeErrorOptions {
+            duration: args.duration,
+            ..TimeErrorOptions::default()
+        };
+        let report = time_error(&setup, &options, &mut progress)?;
+        print!("{}", format_time_error(&report));
+        if let Some(path) = &args.json {
+            crate::bench::output::write_serialized(path, &report)?;
+        }
         return Ok(());
     }
 
@@ -207,8 +236,36 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
     if let Some(dir) = &args.frames {
         write_frames(dir, &problem, &outcomes)?;
     }
+    let mut plotted = records;
+    for file in &args.compare {
+        let label = file
+            .file_stem()
+            .map_or("compare".into(), |s| s.to_string_lossy().into_owned());
+        let theirs: Vec<Record> = read_csv(file)?
+            .into_iter()
+            .filter(|r| r.scene == problem.name)
+            .map(|r| Record {
+                solver: format!("{label}:{}", r.solver),
+                ..r
+            })
+            .collect();
+        if theirs.is_empty() {
+            eprintln!(
+                "warning: {} has no record for {}; nothing to compare",
+                file.display(),
+                problem.name
+            );
+        } else {
+            println!(
+                "compared with {} record(s) of {} (series {label}:…)",
+                theirs.len(),
+                file.display()
+            );
+        }
+        plotted.extend(theirs);
+    }
     if let Some(path) = &args.plot {
-        plot_pareto(path, &records, &problem.name)?;
+        plot_pareto(path, &plotted, &problem.name)?;
     }
     Ok(())
 }

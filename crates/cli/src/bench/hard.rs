@@ -45,14 +45,19 @@ pub const HARD_INTEGRATORS: &[&str] = &[
     "linearized-cg",
     "linearized-jacobi",
     "newton",
+    "newton-plain",
     "pd",
+    "lbfgs",
+    "newton-cg",
+    "pd-chebyshev",
 ];
 
 /// The settings [`hard_case_settings`] changes from the library's defaults ([`Settings::default`]
 /// with the integrator chosen), printed with the matrix ([`crate::bench::format_hard_cases`]).
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
      methods take the substeps their stability bound asks for (at most --max-substeps, default \
-     1000); newton's iteration limit is 200 (default 100) before a frame is halved";
+     1000); newton's (and newton-plain's, which is newton without the relaxation) iteration limit is 200 \
+     (default 100) before a frame is halved";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -264,8 +269,29 @@ pub fn hard_case_settings(
             },
             ..Settings::default()
         },
+        "newton-plain" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                max_iterations: 200,
+                relaxation: crate::solvers::Relaxation::NONE,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
         "pd" => Settings {
             integrator: Integrator::ProjectiveDynamics,
+            ..Settings::default()
+        },
+        "lbfgs" => Settings {
+            integrator: Integrator::Lbfgs,
+            ..Settings::default()
+        },
+        "newton-cg" => Settings {
+            integrator: Integrator::NewtonCg,
+            ..Settings::default()
+        },
+        "pd-chebyshev" => Settings {
+            integrator: Integrator::ChebyshevPd,
             ..Settings::default()
         },
         other => {

@@ -14,7 +14,8 @@
 //!   residual);
 //! - [`write_json`], [`write_csv`], [`format_table`], [`plot_pareto`] report [`Record`]s;
 //! - [`sweep`] times one step on cloth-N for several N; [`hard_cases`] runs every integrator on the
-//!   hard cases of SCENES.md.
+//!   hard cases of SCENES.md; [`time_error`] runs every integrator for 1 s and reports its
+//!   time-discretisation error against small-step references.
 //!
 //! ```no_run
 //! use hooke_cli::bench::{BenchProblem, ErrorMeter, PrepareOptions, SolverSpec, TimingOptions};
@@ -39,6 +40,7 @@ mod run;
 mod spec;
 mod state;
 mod sweep;
+mod time_error;
 
 use std::path::PathBuf;
 
@@ -49,8 +51,8 @@ pub use hard::{
 };
 pub use measure::{ErrorMeter, Measures};
 pub use output::{
-    format_hard_cases, format_sweep_table, format_table, frame_file_name, write_csv, write_frames,
-    write_json, COLUMNS,
+    format_hard_cases, format_sweep_table, format_table, frame_file_name, read_csv, write_csv,
+    write_frames, write_json, COLUMNS,
 };
 pub use plot::{plot_pareto, plot_sweep};
 pub use run::{run_spec, Outcome, Record, TimingOptions};
@@ -60,6 +62,9 @@ pub use state::{
     REFERENCE_MAX_ITERATIONS, REFERENCE_TOLERANCE, STATE_STEPS,
 };
 pub use sweep::{peak_memory_bytes, sweep, SweepOptions, SweepRow};
+pub use time_error::{
+    format_time_error, time_error, TimeErrorOptions, TimeErrorReport, TimeErrorRow,
+};
 
 /// Everything `hooke bench` can fail with. Bad specifications and scenes are errors, never panics.
 #[derive(Debug, thiserror::Error)]

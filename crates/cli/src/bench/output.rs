@@ -55,7 +55,18 @@ fn write_file(
 /// # Errors
 /// [`BenchError::Output`] naming the file.
 pub fn write_json(path: &Path, records: &[Record]) -> Result<(), BenchError> {
-    let text = serde_json::to_string_pretty(records).map_err(|e| output_error(path, e))?;
+    write_serialized(path, records)
+}
+
+/// Write any report as pretty JSON, atomically.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub(crate) fn write_serialized(
+    path: &Path,
+    value: &(impl serde::Serialize + ?Sized),
+) -> Result<(), BenchError> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| output_error(path, e))?;
     write_file(path, |out| writeln!(out, "{text}"))
 }
 
@@ -65,37 +76,52 @@ pub fn write_json(path: &Path, records: &[Record]) -> Result<(), BenchError> {
 /// # Errors
 /// [`BenchError::Output`] naming the file.
 pub fn write_csv(path: &Path, records: &[Record]) -> Result<(), BenchError> {
+    let number = |v: Option<f64>| match v {
+        Some(v) if v.is_finite() => format!("{v:?}"),
+        _ => String::new(),
+    };
     write_file(path, |out| {
-        writeln!(out, "{}", COLUMNS.join(","))?;
+        let mut writer = csv::Writer::from_writer(out);
+        writer.write_record(COLUMNS)?;
         for r in records {
-            let number = |v: Option<f64>| match v {
-                Some(v) if v.is_finite() => format!("{v:?}"),
-                _ => String::new(),
-            };
-            let fields = [
-                quote(&r.scene),
-                quote(&r.solver),
-                quote(&r.setting),
+            writer.write_record([
+                r.scene.clone(),
+                r.solver.clone(),
+                r.setting.clone(),
                 r.iterations.map(|k| k.to_string()).unwrap_or_default(),
                 number(r.wall_time_s),
                 number(r.factor_time_s),
                 number(r.objective_error),
                 number(r.position_error),
                 number(r.residual),
-            ];
-            writeln!(out, "{}", fields.join(","))?;
+            ])?;
         }
-        Ok(())
+        writer.flush()
     })
 }
 
-/// A CSV field, quoted if it holds a comma, a quote or a line break.
-fn quote(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
+/// Read records written by [`write_csv`] (by this bench or by another implementation writing the
+/// same columns, [`COLUMNS`], in any order; empty fields are absent values).
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file if it cannot be read, lacks a column, or has a field
+/// that is not of its column's type.
+pub fn read_csv(path: &Path) -> Result<Vec<Record>, BenchError> {
+    let mut reader = csv::Reader::from_path(path).map_err(|e| output_error(path, e))?;
+    let header = reader.headers().map_err(|e| output_error(path, e))?.clone();
+    if let Some(missing) = COLUMNS.iter().find(|c| !header.iter().any(|h| h == **c)) {
+        return Err(output_error(
+            path,
+            format!(
+                "no column {missing:?} (the bench's CSV columns are {})",
+                COLUMNS.join(",")
+            ),
+        ));
     }
+    reader
+        .deserialize()
+        .collect::<Result<Vec<Record>, _>>()
+        .map_err(|e| output_error(path, e))
 }
 
 fn sci(v: Option<f64>) -> String {

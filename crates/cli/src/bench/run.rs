@@ -4,7 +4,8 @@ use std::time::{Duration, Instant};
 
 use hooke_solvers::{
     BackwardEulerStep, ChebyshevParams, ChebyshevPd, Lbfgs, LbfgsParams, Newton, NewtonCg,
-    NewtonCgParams, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, StopReason,
+    NewtonCgParams, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation,
+    StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -21,7 +22,7 @@ const CHEBYSHEV_RATE_ITERATIONS: usize = 20;
 
 /// One line of the report: what `--json` and `--csv` write, with exactly these fields (`null` /
 /// empty where a value was not computed).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Record {
     /// The scene's name, e.g. `cloth-40`.
     pub scene: String,
@@ -273,10 +274,22 @@ impl Runner {
                     x: problem.y.clone(),
                 }
             }
-            SolverKind::Newton | SolverKind::NewtonTol => {
+            SolverKind::Newton
+            | SolverKind::NewtonTol
+            | SolverKind::NewtonPlain
+            | SolverKind::NewtonPlainTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
-                let newton = Newton::new(objective.pattern(), NewtonParams::default())
+                let plain = matches!(kind, SolverKind::NewtonPlain | SolverKind::NewtonPlainTol);
+                let params = NewtonParams {
+                    relaxation: if plain {
+                        Relaxation::NONE
+                    } else {
+                        Relaxation::default()
+                    },
+                    ..NewtonParams::default()
+                };
+                let newton = Newton::new(objective.pattern(), params)
                     .map_err(|e| solver_error(e.to_string()))?;
                 Runner::Newton {
                     unknowns: vec![0.0; objective.dim()],

@@ -47,6 +47,11 @@ pub enum SolverKind {
     NewtonCg,
     /// `newton-cg-tol:T`: as `newton-cg`, until the relative gradient ≤ T (at most 500 iterations).
     NewtonCgTol,
+    /// `newton-plain:K`: as `newton`, without the nonlinear relaxation
+    /// ([`crate::solvers::Relaxation::NONE`]): the convex blend and the Armijo search alone.
+    NewtonPlain,
+    /// `newton-plain-tol:T`: as `newton-tol`, without the relaxation.
+    NewtonPlainTol,
 }
 
 impl SolverKind {
@@ -67,6 +72,8 @@ impl SolverKind {
         SolverKind::Chebyshev,
         SolverKind::NewtonCg,
         SolverKind::NewtonCgTol,
+        SolverKind::NewtonPlain,
+        SolverKind::NewtonPlainTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -87,6 +94,8 @@ impl SolverKind {
             SolverKind::Chebyshev => "chebyshev",
             SolverKind::NewtonCg => "newton-cg",
             SolverKind::NewtonCgTol => "newton-cg-tol",
+            SolverKind::NewtonPlain => "newton-plain",
+            SolverKind::NewtonPlainTol => "newton-plain-tol",
         }
     }
 
@@ -99,13 +108,15 @@ impl SolverKind {
             | SolverKind::Jacobi
             | SolverKind::Lbfgs
             | SolverKind::Chebyshev
-            | SolverKind::NewtonCg => Values::Iterations,
+            | SolverKind::NewtonCg
+            | SolverKind::NewtonPlain => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
             | SolverKind::JacobiTol
             | SolverKind::LbfgsTol
-            | SolverKind::NewtonCgTol => Values::Tolerances,
+            | SolverKind::NewtonCgTol
+            | SolverKind::NewtonPlainTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -129,6 +140,8 @@ impl SolverKind {
             SolverKind::Chebyshev => iterations(&[5, 10, 20, 50, 100]),
             SolverKind::NewtonCg => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonCgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonPlain => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonPlainTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }

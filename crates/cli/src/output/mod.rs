@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 
 pub use preview::{render_preview, PreviewInput, PreviewPositions};
 pub use progress::progress_bar;
-pub use summary::{write_summary, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord};
+pub use summary::{
+    write_summary, RateRecord, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,
+};
 pub use timings::{read_timings, write_timings, RunTimings, StepTiming};
 
 // Extras the binary may not need (other image sizes, reading a summary back): for tests and tools.

@@ -43,8 +43,22 @@ pub struct RunSummary {
     /// and in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solver_residual: Option<ResidualRecord>,
+    /// Chebyshev PD only: the ρ it used and where it came from (absent otherwise and in older
+    /// files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chebyshev_rate: Option<RateRecord>,
     /// One record per step, in order.
     pub steps: Vec<StepRecord>,
+}
+
+/// The convergence rate ρ of plain PD that Chebyshev PD's schedule uses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RateRecord {
+    /// ρ, in (0, 1).
+    pub rate: f64,
+    /// `estimated` (from plain PD iterations on the first step), `given` (the settings'), or
+    /// `fallback` (the estimate did not form; the settings' ρ).
+    pub source: String,
 }
 
 /// How the integrator's solver was set up; each entry is absent where the integrator has no such
@@ -190,6 +204,7 @@ mod tests {
                 quantity: "relative gradient".into(),
                 unit: "1".into(),
             }),
+            chebyshev_rate: None,
             steps: vec![
                 StepRecord {
                     step: 1,
