@@ -71,12 +71,13 @@ fn dense() -> Editor {
     editor
 }
 
+/// Each model under each integrator: the frame (advance + render), and its two parts apart
+/// (`editor_step`: advance only; `editor_draw`: render only, of the model as the frames left it),
+/// so that a change is seen where it lands.
 fn frames(c: &mut Criterion) {
-    let mut group = c.benchmark_group("editor_frame");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(4));
+    let mut frame_group = c.benchmark_group("editor_frame");
+    configure(&mut frame_group);
+    let mut prepared = Vec::new();
     for (name, build) in [("net-1000", net as fn() -> Editor), ("dense-1000", dense)] {
         for &choice in IntegratorChoice::ALL {
             let mut editor = build();
@@ -94,7 +95,7 @@ fn frames(c: &mut Criterion) {
                 editor.springs().len()
             );
             let mut renderer = Renderer::new(512).unwrap();
-            group.bench_function(format!("{name}/{}", choice.name()), |b| {
+            frame_group.bench_function(format!("{name}/{}", choice.name()), |b| {
                 b.iter(|| {
                     editor.advance();
                     black_box(renderer.render(&editor, None));
@@ -103,9 +104,31 @@ fn frames(c: &mut Criterion) {
             if let Some(failure) = editor.failure() {
                 eprintln!("{name}/{}: failed while measured: {failure}", choice.name());
             }
+            prepared.push((format!("{name}/{}", choice.name()), editor, renderer));
         }
     }
-    group.finish();
+    frame_group.finish();
+    let mut step_group = c.benchmark_group("editor_step");
+    configure(&mut step_group);
+    for (id, editor, _) in &mut prepared {
+        step_group.bench_function(id.as_str(), |b| b.iter(|| editor.advance()));
+    }
+    step_group.finish();
+    let mut draw_group = c.benchmark_group("editor_draw");
+    configure(&mut draw_group);
+    for (id, editor, renderer) in &mut prepared {
+        draw_group.bench_function(id.as_str(), |b| {
+            b.iter(|| black_box(renderer.render(editor, None).width()))
+        });
+    }
+    draw_group.finish();
+}
+
+fn configure(group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(4));
 }
 
 criterion_group!(benches, frames);

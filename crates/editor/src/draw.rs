@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
 use tiny_skia::{
-    Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, PremultipliedColorU8, Stroke, Transform,
+    Color, FillRule, Mask, Paint, PathBuilder, Pixmap, PremultipliedColorU8, Stroke, Transform,
 };
 
 use crate::{Editor, EditorError};
@@ -30,6 +30,9 @@ pub struct Renderer {
     pixmap: Pixmap,
     font: FontRef<'static>,
     buckets: Vec<PathBuilder>,
+    pinned_path: PathBuilder,
+    discs: DiscStamps,
+    text_cache: Vec<CachedLine>,
 }
 
 impl std::fmt::Debug for Renderer {
@@ -59,6 +62,17 @@ fn bucket_colour(b: usize) -> Color {
     Color::from_rgba8(c(0), c(1), c(2), 255)
 }
 
+/// The colour of a free particle (seed 004's 0x111111).
+const FREE_PARTICLE: u32 = 0x111111;
+
+/// How far (pixels) along a spring of half-width `half_width` from a particle's centre the particle's
+/// disc of `radius` covers the whole width of the stroke, less a margin of 0.75 px so that the
+/// disc's anti-aliased rim still has the spring under it.
+fn covered_length(radius: f32, half_width: f32) -> f32 {
+    let inner = (radius - 0.75).max(0.0);
+    (inner * inner - half_width * half_width).max(0.0).sqrt()
+}
+
 fn bucket_of(strain: f64) -> usize {
     let middle = (STRAIN_BUCKETS / 2) as f64;
     let t = (strain / FULL_STRAIN).clamp(-1.0, 1.0);
@@ -80,6 +94,9 @@ impl Renderer {
             pixmap,
             font,
             buckets: (0..STRAIN_BUCKETS).map(|_| PathBuilder::new()).collect(),
+            pinned_path: PathBuilder::new(),
+            discs: DiscStamps::new(5.0 * size as f32 / 512.0),
+            text_cache: Vec::new(),
         })
     }
 
@@ -118,52 +135,62 @@ impl Renderer {
             self.pixmap
                 .stroke_path(&path, &paint, &stroke, Transform::identity(), None);
         }
-        // Springs, one path per strain bucket.
+        // Springs: one path per strain bucket, each spring the rectangle of its stroke between
+        // the two discs that cover its ends (the parts under them never show, and in a dense net
+        // they are most of every spring).
         let positions = editor.positions();
+        let radius = 5.0 * scale;
+        let half_width = scale;
+        let hidden = covered_length(radius, half_width);
         for s in editor.springs() {
             let b = bucket_of(editor.strain(s));
             let (a, c) = (
                 to_pixel(&positions[s.i as usize]),
                 to_pixel(&positions[s.j as usize]),
             );
-            self.buckets[b].move_to(a.0, a.1);
-            self.buckets[b].line_to(c.0, c.1);
+            let (dx, dy) = (c.0 - a.0, c.1 - a.1);
+            let length = (dx * dx + dy * dy).sqrt();
+            if length.is_nan() || length <= 2.0 * hidden {
+                continue;
+            }
+            let (ux, uy) = (dx / length, dy / length);
+            let (nx, ny) = (-uy * half_width, ux * half_width);
+            let (a, c) = (
+                (a.0 + ux * hidden, a.1 + uy * hidden),
+                (c.0 - ux * hidden, c.1 - uy * hidden),
+            );
+            let path = &mut self.buckets[b];
+            path.move_to(a.0 + nx, a.1 + ny);
+            path.line_to(c.0 + nx, c.1 + ny);
+            path.line_to(c.0 - nx, c.1 - ny);
+            path.line_to(a.0 - nx, a.1 - ny);
+            path.close();
         }
-        let stroke = Stroke {
-            width: 2.0 * scale,
-            line_cap: LineCap::Round,
-            ..Stroke::default()
-        };
         for b in 0..STRAIN_BUCKETS {
             let builder = std::mem::take(&mut self.buckets[b]);
             if let Some(path) = builder.finish() {
                 paint.set_color(bucket_colour(b));
-                self.pixmap
-                    .stroke_path(&path, &paint, &stroke, Transform::identity(), None);
+                self.pixmap.fill_path(
+                    &path,
+                    &paint,
+                    FillRule::Winding,
+                    Transform::identity(),
+                    None,
+                );
                 self.buckets[b] = path.clear();
             }
         }
-        // Particles: free dark, pinned red with a ring (seed: 0x111111 and 0xFF0000, radius 5).
-        let radius = 5.0 * scale;
-        let mut free = PathBuilder::new();
-        let mut pinned = PathBuilder::new();
+        // Particles: free dark, stamped; pinned red with a ring (seed: 0x111111 and 0xFF0000,
+        // radius 5).
+        let mut pinned = std::mem::take(&mut self.pinned_path);
+        // Stamped in order; the pinned discs go on top, as one path.
         for (p, &is_pinned) in positions.iter().zip(editor.pinned()) {
             let (x, y) = to_pixel(p);
             if is_pinned {
                 pinned.push_circle(x, y, radius);
             } else {
-                free.push_circle(x, y, radius);
+                self.discs.stamp(&mut self.pixmap, x, y, FREE_PARTICLE);
             }
-        }
-        if let Some(path) = free.finish() {
-            paint.set_color(rgb(0x111111));
-            self.pixmap.fill_path(
-                &path,
-                &paint,
-                FillRule::Winding,
-                Transform::identity(),
-                None,
-            );
         }
         if let Some(path) = pinned.finish() {
             paint.set_color(rgb(0xFF0000));
@@ -181,6 +208,7 @@ impl Renderer {
             };
             self.pixmap
                 .stroke_path(&path, &paint, &ring, Transform::identity(), None);
+            self.pinned_path = path.clear();
         }
         // The pull's target and the dragged particle.
         let (cursor, attracting) = editor.cursor();
@@ -215,98 +243,107 @@ impl Renderer {
     fn overlay(&mut self, editor: &Editor, frame_time: Option<Duration>) {
         let size = self.pixmap.width() as f32;
         let px = 12.0 * size / 512.0;
-        let line = px * 1.3;
         let margin = 6.0 * size / 512.0;
-        let stats = editor.stats();
-        let solver = match (stats.residual, editor.library_integrator().is_explicit()) {
-            (_, true) => "solver: none (explicit)".to_string(),
-            (Some(r), false) => format!(
-                "solver: {} iterations this frame, last residual {r:.2e}{}",
-                stats.iterations,
-                if stats.clamped_substeps > 0 {
-                    format!(", clamped Hessian in {}", stats.clamped_substeps)
-                } else {
-                    String::new()
-                }
-            ),
-            (None, false) => "solver: -".to_string(),
+        let mut text = Text {
+            pixmap: &mut self.pixmap,
+            font: &self.font,
+            cache: &mut self.text_cache,
+            px,
+            x: margin,
+            line_height: px * 1.3,
+            first_baseline: margin + px,
+            slot: 0,
         };
+        const BLACK: u32 = 0x000000;
+        const RED: u32 = 0xC00000;
+        text.line(
+            format_args!("Left: add (shift: pinned, P: toggle pin); Right: attract; Middle: drag"),
+            BLACK,
+        );
+        text.line(
+            format_args!("C: clear; Space: pause; I: integrator; [ ]: substeps; S: save"),
+            BLACK,
+        );
+        text.line(
+            format_args!(
+                "integrator: {} ({} substeps of {:.2} ms)",
+                editor.integrator().name(),
+                editor.substeps(),
+                editor.substep() * 1e3
+            ),
+            BLACK,
+        );
+        let stats = editor.stats();
+        match (stats.residual, editor.library_integrator().is_explicit()) {
+            (_, true) => text.line(format_args!("solver: none (explicit)"), BLACK),
+            (Some(r), false) if stats.clamped_substeps > 0 => text.line(
+                format_args!(
+                    "solver: {} iterations this frame, last residual {r:.2e}, clamped Hessian in {}",
+                    stats.iterations, stats.clamped_substeps
+                ),
+                BLACK,
+            ),
+            (Some(r), false) => text.line(
+                format_args!(
+                    "solver: {} iterations this frame, last residual {r:.2e}",
+                    stats.iterations
+                ),
+                BLACK,
+            ),
+            (None, false) => text.line(format_args!("solver: -"), BLACK),
+        }
+        text.line(format_args!("energy: {:.4} J", editor.energy()), BLACK);
+        text.line(
+            format_args!("Y: Young's modulus {:.1} N (k = Y/l)", editor.young()),
+            BLACK,
+        );
+        text.line(
+            format_args!("D: drag damping {:.2} /s", editor.drag()),
+            BLACK,
+        );
         let dashpot_note = if editor.integrator().models_dashpot() {
             ""
         } else {
             " (not modelled by pd)"
         };
-        let time = match frame_time {
-            Some(t) => format!("{:.1} ms", t.as_secs_f64() * 1e3),
-            None => "-".to_string(),
-        };
-        let mut lines = vec![
-            (
-                "Left: add (shift: pinned, P: toggle pin); Right: attract; Middle: drag"
-                    .to_string(),
-                0x000000,
+        text.line(
+            format_args!(
+                "X: dashpot damping {:.2} N s/m{dashpot_note}",
+                editor.dashpot()
             ),
-            (
-                "C: clear; Space: pause; I: integrator; [ ]: substeps; S: save".to_string(),
-                0x000000,
-            ),
-            (
-                format!(
-                    "integrator: {} ({} substeps of {:.2} ms)",
-                    editor.integrator().name(),
-                    editor.substeps(),
-                    editor.substep() * 1e3
+            BLACK,
+        );
+        let (particles, springs, frames) = (
+            editor.particle_count(),
+            editor.springs().len(),
+            editor.frames(),
+        );
+        match frame_time {
+            Some(t) => text.line(
+                format_args!(
+                    "{particles} particles, {springs} springs; frame {frames}; frame time {:.1} ms",
+                    t.as_secs_f64() * 1e3
                 ),
-                0x000000,
+                BLACK,
             ),
-            (solver, 0x000000),
-            (format!("energy: {:.4} J", editor.energy()), 0x000000),
-            (
-                format!("Y: Young's modulus {:.1} N (k = Y/l)", editor.young()),
-                0x000000,
-            ),
-            (format!("D: drag damping {:.2} /s", editor.drag()), 0x000000),
-            (
-                format!(
-                    "X: dashpot damping {:.2} N s/m{dashpot_note}",
-                    editor.dashpot()
+            None => text.line(
+                format_args!(
+                    "{particles} particles, {springs} springs; frame {frames}; frame time -"
                 ),
-                0x000000,
+                BLACK,
             ),
-            (
-                format!(
-                    "{} particles, {} springs; frame {}; frame time {time}",
-                    editor.particle_count(),
-                    editor.springs().len(),
-                    editor.frames()
-                ),
-                0x000000,
-            ),
-        ];
+        }
         if let Some(notice) = editor.notice() {
-            lines.push((notice.to_string(), 0x804000));
+            text.line(format_args!("{notice}"), 0x804000);
         }
         if let Some(failure) = editor.failure() {
-            let text = format!("FAILED, paused (space retries): {failure}");
-            let width = size - 2.0 * margin;
-            for piece in wrap(&self.font, px, &text, width) {
-                lines.push((piece, 0xC00000));
+            // Rare (the editor pauses on it): wrapping may allocate.
+            let message = format!("FAILED, paused (space retries): {failure}");
+            for piece in wrap(text.font, px, &message, size - 2.0 * margin) {
+                text.line(format_args!("{piece}"), RED);
             }
         } else if editor.is_paused() {
-            lines.push(("PAUSED".to_string(), 0xC00000));
-        }
-        let mut baseline = margin + px;
-        for (text, colour) in &lines {
-            draw_text(
-                &mut self.pixmap,
-                &self.font,
-                px,
-                margin,
-                baseline,
-                text,
-                *colour,
-            );
-            baseline += line;
+            text.line(format_args!("PAUSED"), RED);
         }
     }
 
@@ -353,21 +390,171 @@ fn text_width(font: &FontRef<'_>, px: f32, text: &str) -> f32 {
         .sum()
 }
 
-/// Draw `text` with its baseline at `y`, starting at `x` (pixels), blending each glyph's coverage
-/// over the (opaque) background.
-fn draw_text(
-    pixmap: &mut Pixmap,
+/// Subpixel positions per axis at which the disc is rasterised in advance: a stamped disc is at
+/// most 1/16 px from where it should be.
+const PHASES: i32 = 8;
+
+/// A particle's disc rasterised once per subpixel phase (tiny-skia's anti-aliased fill into a
+/// coverage mask) and stamped at every free particle: a thousand discs cost a thousand small blends
+/// instead of one anti-aliased path of four thousand conic edges, sorted and scanned.
+struct DiscStamps {
+    /// Pixels per side of every mask.
+    side: i32,
+    /// From a mask's top-left pixel to the pixel of the disc's centre at phase 0.
+    offset: i32,
+    /// Coverage masks, phase (px, py) at index py · PHASES + px.
+    masks: Vec<Mask>,
+}
+
+impl DiscStamps {
+    fn new(radius: f32) -> Self {
+        let offset = radius.ceil() as i32 + 1;
+        let side = 2 * offset + 2;
+        let masks = (0..PHASES * PHASES)
+            .map(|k| {
+                let (px, py) = (k % PHASES, k / PHASES);
+                let mut mask = Mask::new(side as u32, side as u32).expect("a small mask");
+                let centre = |phase: i32| offset as f32 + phase as f32 / PHASES as f32;
+                if let Some(path) = PathBuilder::from_circle(centre(px), centre(py), radius) {
+                    mask.fill_path(&path, FillRule::Winding, true, Transform::identity());
+                }
+                mask
+            })
+            .collect();
+        DiscStamps {
+            side,
+            offset,
+            masks,
+        }
+    }
+
+    /// Blend `colour` in the disc centred at (x, y) (pixels) over the opaque frame.
+    fn stamp(&self, pixmap: &mut Pixmap, x: f32, y: f32, colour: u32) {
+        // Saturating casts: a position far outside (or not finite) lands outside the frame.
+        let (qx, qy) = (
+            (x * PHASES as f32).round() as i64,
+            (y * PHASES as f32).round() as i64,
+        );
+        let phase = qy.rem_euclid(PHASES.into()) * i64::from(PHASES) + qx.rem_euclid(PHASES.into());
+        let mask = &self.masks[phase as usize];
+        let left = qx.div_euclid(PHASES.into()) - i64::from(self.offset);
+        let top = qy.div_euclid(PHASES.into()) - i64::from(self.offset);
+        let (w, h) = (i64::from(pixmap.width()), i64::from(pixmap.height()));
+        let side = i64::from(self.side);
+        let columns = left.max(0)..(left + side).min(w);
+        let rows = top.max(0)..(top + side).min(h);
+        if columns.is_empty() || rows.is_empty() {
+            return;
+        }
+        let rgb = channels(colour);
+        let coverage = mask.data();
+        let pixels = pixmap.pixels_mut();
+        for row in rows {
+            let mask_row = ((row - top) * side) as usize;
+            let frame_row = (row * w) as usize;
+            for column in columns.clone() {
+                let c = coverage[mask_row + (column - left) as usize];
+                if c != 0 {
+                    mix(&mut pixels[frame_row + column as usize], rgb, c);
+                }
+            }
+        }
+    }
+}
+
+/// The red, green and blue of `0xRRGGBB`.
+fn channels(colour: u32) -> [u8; 3] {
+    [(colour >> 16) as u8, (colour >> 8) as u8, colour as u8]
+}
+
+/// `pixel` ← (`coverage` · colour + (255 − `coverage`) · `pixel`) / 255, rounded, opaque (integer
+/// arithmetic: a float round per channel cost more than the rest of a stamp).
+#[inline]
+fn mix(pixel: &mut PremultipliedColorU8, [r, g, b]: [u8; 3], coverage: u8) {
+    let c = u32::from(coverage);
+    let blend =
+        |dst: u8, src: u8| ((u32::from(src) * c + u32::from(dst) * (255 - c) + 127) / 255) as u8;
+    if let Some(blended) = PremultipliedColorU8::from_rgba(
+        blend(pixel.red(), r),
+        blend(pixel.green(), g),
+        blend(pixel.blue(), b),
+        255,
+    ) {
+        *pixel = blended;
+    }
+}
+
+/// One overlay line as last rasterised: its text and the coverage of every glyph pixel in drawing
+/// order (pixel index, coverage 0–255), so that an unchanged line is blended again without
+/// outlining a glyph, to the same bits.
+#[derive(Default)]
+struct CachedLine {
+    text: String,
+    coverage: Vec<(u32, u8)>,
+}
+
+/// The overlay being drawn: where the next line goes and the cache of the lines drawn before.
+struct Text<'a> {
+    pixmap: &'a mut Pixmap,
+    font: &'a FontRef<'static>,
+    cache: &'a mut Vec<CachedLine>,
+    /// Font size, pixels.
+    px: f32,
+    /// Left edge of the text, pixels.
+    x: f32,
+    line_height: f32,
+    first_baseline: f32,
+    /// The next line's index.
+    slot: usize,
+}
+
+impl Text<'_> {
+    /// Draw the next line: formatted into the slot's cached text, rasterised only if it changed.
+    fn line(&mut self, text: std::fmt::Arguments<'_>, colour: u32) {
+        use std::fmt::Write as _;
+        if self.cache.len() <= self.slot {
+            self.cache.push(CachedLine::default());
+        }
+        let baseline = self.first_baseline + self.slot as f32 * self.line_height;
+        let cached = &mut self.cache[self.slot];
+        self.slot += 1;
+        let previous_length = cached.text.len();
+        // Append, then compare with what the slot held: no allocation once the capacity is there.
+        write!(cached.text, "{text}").expect("formatting into a String does not fail");
+        let (old, new) = cached.text.split_at(previous_length);
+        if old != new {
+            cached.text.drain(..previous_length);
+            let (w, h) = (self.pixmap.width(), self.pixmap.height());
+            rasterise(
+                self.font,
+                self.px,
+                self.x,
+                baseline,
+                &cached.text,
+                (w, h),
+                &mut cached.coverage,
+            );
+        } else {
+            cached.text.truncate(previous_length);
+        }
+        blend(self.pixmap, &cached.coverage, colour);
+    }
+}
+
+/// The coverage of `text` with its baseline at `y`, starting at `x` (pixels), glyph by glyph in
+/// drawing order, pixels outside a `width` × `height` frame left out.
+fn rasterise(
     font: &FontRef<'_>,
     px: f32,
     x: f32,
     y: f32,
     text: &str,
-    colour: u32,
+    (width, height): (u32, u32),
+    coverage: &mut Vec<(u32, u8)>,
 ) {
-    let (w, h) = (pixmap.width() as i64, pixmap.height() as i64);
+    coverage.clear();
+    let (w, h) = (i64::from(width), i64::from(height));
     let scaled = font.as_scaled(PxScale::from(px));
-    let [r, g, b] = [(colour >> 16) as u8, (colour >> 8) as u8, colour as u8].map(f32::from);
-    let pixels = pixmap.pixels_mut();
     let mut caret = x;
     let mut previous = None;
     for c in text.chars() {
@@ -382,26 +569,26 @@ fn draw_text(
             continue;
         };
         let bounds = outlined.px_bounds();
-        outlined.draw(|gx, gy, coverage| {
+        outlined.draw(|gx, gy, a| {
             let (px_x, px_y) = (
-                bounds.min.x as i64 + gx as i64,
-                bounds.min.y as i64 + gy as i64,
+                bounds.min.x as i64 + i64::from(gx),
+                bounds.min.y as i64 + i64::from(gy),
             );
-            if px_x < 0 || px_y < 0 || px_x >= w || px_y >= h {
+            let a = (a.clamp(0.0, 1.0) * 255.0).round() as u8;
+            if px_x < 0 || px_y < 0 || px_x >= w || px_y >= h || a == 0 {
                 return;
             }
-            let pixel = &mut pixels[(px_y * w + px_x) as usize];
-            let a = coverage.clamp(0.0, 1.0);
-            let mix = |dst: u8, src: f32| (src * a + f32::from(dst) * (1.0 - a)).round() as u8;
-            if let Some(blended) = PremultipliedColorU8::from_rgba(
-                mix(pixel.red(), r),
-                mix(pixel.green(), g),
-                mix(pixel.blue(), b),
-                255,
-            ) {
-                *pixel = blended;
-            }
+            coverage.push(((px_y * w + px_x) as u32, a));
         });
+    }
+}
+
+/// Blend `colour` over the (opaque) frame with each pixel's coverage, in order.
+fn blend(pixmap: &mut Pixmap, coverage: &[(u32, u8)], colour: u32) {
+    let rgb = channels(colour);
+    let pixels = pixmap.pixels_mut();
+    for &(index, a) in coverage {
+        mix(&mut pixels[index as usize], rgb, a);
     }
 }
 

@@ -145,49 +145,29 @@ impl Editor {
         Ok(editor)
     }
 
-    /// Open a 2D scene (a scene file's or [`hooke_sim::scenes::seed_2d`]'s setup): its particles,
-    /// pins, springs, drag, dashpot and integrator. Every spring's k·l must be the same Young's
-    /// modulus (the editor has one), every particle must lie in the unit box, and the particle
-    /// count must be within `params.max_particles`.
+    /// Open a 2D scene (a scene file's or [`hooke_sim::scenes::seed_2d`]'s setup). The editor
+    /// takes its particles, velocities, pins, springs, particle mass, gravity, drag, dashpot,
+    /// integrator and time step over `params`'s (an explicit integrator's time step is the frame,
+    /// split into the scene's substeps; an implicit one's is the editor's substep, as many to a
+    /// frame as come closest to `params.frame_time`), and shows in [`Editor::notice`] what it runs
+    /// differently (the file's solver settings, walls added to a scene without them).
     ///
     /// # Errors
-    /// [`EditorError::UnsupportedScene`] saying which condition fails.
+    /// [`EditorError::UnsupportedScene`] for a scene the editor cannot model, naming what: more
+    /// than `params.max_particles` particles, a particle outside the unit box, springs of different
+    /// Young's moduli k·l, particles of different masses, gravity not pointing down, a force other
+    /// than gravity, viscous damping, pins on a path, an obstacle other than the unit box's
+    /// frictionless walls.
     pub fn from_setup(params: EditorParams, setup: &Setup<2>) -> Result<Self, EditorError> {
-        let mut editor = Editor::new(params)?;
-        let unsupported = |reason: String| EditorError::UnsupportedScene { reason };
-        let mesh = setup.scene.mesh();
-        if mesh.vertex_count() > params.max_particles {
-            return Err(unsupported(format!(
-                "{} particles, more than the editor's {}",
-                mesh.vertex_count(),
-                params.max_particles
-            )));
-        }
-        for (v, p) in setup.initial.positions.iter().enumerate() {
-            if !(0.0..=1.0).contains(&p.x) || !(0.0..=1.0).contains(&p.y) {
-                return Err(unsupported(format!(
-                    "particle {v} at ({}, {}) is outside the unit box",
-                    p.x, p.y
-                )));
-            }
-        }
-        let young = mesh.springs()[0].stiffness * mesh.springs()[0].rest_length;
-        for (index, s) in mesh.springs().iter().enumerate() {
-            let y = s.stiffness * s.rest_length;
-            // Scene files store k = Y / l; a round trip through decimal text changes k·l by a few
-            // ulps, nothing more.
-            if (y - young).abs() > 1e-9 * young {
-                return Err(unsupported(format!(
-                    "spring {index} has k·l = {y} N, spring 0 has {young} N; the editor keeps one \
-                     Young's modulus"
-                )));
-            }
-        }
-        editor.young = young;
+        let opened = crate::setup::open(params, setup)?;
+        let mut editor = Editor::new(opened.params)?;
+        editor.young = opened.young;
         editor.positions = setup.initial.positions.clone();
         editor.velocities = setup.initial.velocities.clone();
         editor.pinned = setup.scene.is_pinned().to_vec();
-        editor.springs = mesh
+        editor.springs = setup
+            .scene
+            .mesh()
             .springs()
             .iter()
             .map(|s| ModelSpring {
@@ -196,10 +176,8 @@ impl Editor {
                 rest_length: s.rest_length,
             })
             .collect();
-        let damping = setup.scene.damping();
-        editor.drag = damping.drag;
-        editor.dashpot = damping.dashpot;
-        editor.integrator = IntegratorChoice::from_settings(&setup.settings);
+        editor.integrator = opened.integrator;
+        editor.notice = opened.notice;
         Ok(editor)
     }
 

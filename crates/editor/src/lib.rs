@@ -33,6 +33,7 @@ mod event;
 mod params;
 mod replay;
 pub mod scene_file;
+mod setup;
 #[cfg(feature = "window")]
 pub mod window;
 
