@@ -91,4 +91,17 @@ pub enum StuffingError {
         /// The spacing used (m).
         spacing: f64,
     },
+    /// The surface has a feature thinner than about a spacing (a thin plate or tube, a sharp crease,
+    /// two sheets that nearly touch) where lattice vertices from both sides were warped onto it and
+    /// the mesh's boundary would pinch (not be a manifold) even after the repair.
+    #[error(
+        "the surface has a feature thinner than the spacing {spacing} m near ({:.6e}, {:.6e}, {:.6e}): the mesh's boundary would pinch there; use a smaller spacing",
+        point[0], point[1], point[2]
+    )]
+    UnresolvedFeature {
+        /// Where (m): a warped lattice vertex at the pinch, on the surface.
+        point: [f64; 3],
+        /// The spacing used (m).
+        spacing: f64,
+    },
 }

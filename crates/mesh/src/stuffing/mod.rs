@@ -15,10 +15,11 @@
 //! 4. The stencils fill each lattice tetrahedron by the signs of its vertices.
 //!
 //! With these parameters the paper proves every output dihedral angle is between 10.7° and
-//! 164.8°. A lattice tetrahedron whose four vertices were all warped onto the surface is kept only
-//! if its centroid is inside and its angles are within those bounds (one warped flat is dropped:
-//! its faces, all on the surface, become boundary). The output is deterministic: the same for any
-//! number of threads.
+//! 164.8°. A lattice tetrahedron whose four vertices were all warped onto the surface is a free
+//! choice, made only among those within the angle bounds: first by its centroid (kept if inside),
+//! then by the manifold repair (module `manifold`), so that the boundary is a closed 2-manifold or
+//! the call fails with [`StuffingError::UnresolvedFeature`]. The output is deterministic: the same
+//! for any number of threads.
 //!
 //! ```
 //! use hooke_mesh::stuffing::{tetrahedralize, ClosedSurface, StuffingOptions};
@@ -41,6 +42,7 @@
 
 mod error;
 mod lattice;
+mod manifold;
 mod quality;
 mod stencils;
 mod surface;
@@ -143,12 +145,10 @@ struct Cut {
     point: Vec3,
 }
 
-/// The lattice after warping, as the stencils see it.
+/// The lattice and its cut points, as the stencils see them.
 struct Stuffing<'a> {
     lattice: &'a BccLattice,
-    surface: &'a ClosedSurface,
     cut_index: &'a HashMap<u64, u32>,
-    positions: &'a (dyn Fn(u32) -> Vec3 + Sync),
 }
 
 fn edge_key(a: u32, b: u32) -> u64 {
@@ -167,13 +167,13 @@ impl StencilLattice for Stuffing<'_> {
     fn is_red(&self, id: u32) -> bool {
         self.lattice.is_red(id)
     }
-    fn keep_zero_tetrahedron(&self, tet: [u32; 4]) -> bool {
-        let [a, b, c, d] = tet.map(|v| (self.positions)(v));
-        let within_bounds = dihedral_angles(&a, &b, &c, &d).iter().all(|angle| {
-            (MIN_DIHEDRAL_BOUND_DEG..=MAX_DIHEDRAL_BOUND_DEG).contains(&angle.to_degrees())
-        });
-        within_bounds && self.surface.contains(&((a + b + c + d) / 4.0))
-    }
+}
+
+/// Whether every dihedral angle of the tetrahedron is within the paper's bounds.
+fn within_bounds(a: &Vec3, b: &Vec3, c: &Vec3, d: &Vec3) -> bool {
+    dihedral_angles(a, b, c, d).iter().all(|angle| {
+        (MIN_DIHEDRAL_BOUND_DEG..=MAX_DIHEDRAL_BOUND_DEG).contains(&angle.to_degrees())
+    })
 }
 
 /// Fill a closed surface with tetrahedra by isosurface stuffing on a BCC lattice of spacing
@@ -185,7 +185,8 @@ impl StencilLattice for Stuffing<'_> {
 /// # Errors
 /// [`StuffingError::InvalidParameter`] for bad options, [`StuffingError::LatticeTooLarge`] if the
 /// lattice would exceed `options.max_lattice_vertices`, [`StuffingError::NoTetrahedra`] if the
-/// solid is too thin for the spacing.
+/// solid is too thin for the spacing, [`StuffingError::UnresolvedFeature`] if a feature thinner
+/// than the spacing would pinch the boundary.
 pub fn tetrahedralize(
     surface: &ClosedSurface,
     options: &StuffingOptions,
@@ -235,27 +236,68 @@ pub fn tetrahedralize(
     };
     let stuffing = Stuffing {
         lattice: &lattice,
-        surface,
         cut_index: &cut_index,
-        positions: &position,
     };
     let black = lattice.black_count() as u32;
-    let chunks: Vec<Vec<[u32; 4]>> = (black..lattice_count)
+    // The stencils' output, and apart from it the lattice tetrahedra whose four vertices were all
+    // warped onto the surface: those are chosen below.
+    type Chunks = Vec<Vec<[u32; 4]>>;
+    let (stenciled, all_zero): (Chunks, Chunks) = (black..lattice_count)
         .into_par_iter()
-        .fold(Vec::new, |mut out, red| {
-            for axis in 0..3 {
-                for tet in lattice.tetrahedra_along(red, axis).into_iter().flatten() {
-                    let s = tet.map(|v| signs[v as usize]);
-                    if s.iter().all(|&x| x < 0) {
-                        continue;
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut out, mut zero), red| {
+                for axis in 0..3 {
+                    for tet in lattice.tetrahedra_along(red, axis).into_iter().flatten() {
+                        let s = tet.map(|v| signs[v as usize]);
+                        if s.iter().all(|&x| x < 0) {
+                            continue;
+                        }
+                        if s.iter().all(|&x| x == 0) {
+                            zero.push(tet);
+                            continue;
+                        }
+                        let split = stencils::fill(&stuffing, tet, s, &mut out);
+                        debug_assert!(split, "a prism with cyclic diagonals in {tet:?}");
                     }
-                    let split = stencils::fill(&stuffing, tet, s, &mut out);
-                    debug_assert!(split, "a prism with cyclic diagonals in {tet:?}");
                 }
-            }
-            out
+                (out, zero)
+            },
+        )
+        .unzip();
+    let stenciled: Vec<[u32; 4]> = stenciled.into_iter().flatten().collect();
+    // An all-zero tetrahedron may be kept only within the angle bounds; the centroid rule makes the
+    // first choice, and the manifold repair the last.
+    let candidates: Vec<[u32; 4]> = all_zero
+        .into_iter()
+        .flatten()
+        .filter(|t| {
+            let [a, b, c, d] = t.map(position);
+            within_bounds(&a, &b, &c, &d)
         })
         .collect();
+    let mut kept: Vec<bool> = candidates
+        .iter()
+        .map(|t| {
+            let [a, b, c, d] = t.map(position);
+            surface.contains(&((a + b + c + d) / 4.0))
+        })
+        .collect();
+    manifold::choose_all_zero(&stenciled, &candidates, &mut kept, |v| {
+        v < lattice_count && signs[v as usize] == 0
+    })
+    .map_err(|v| StuffingError::UnresolvedFeature {
+        point: position(v).into(),
+        spacing: h,
+    })?;
+    let chunks = [
+        stenciled,
+        candidates
+            .into_iter()
+            .zip(kept)
+            .filter_map(|(t, k)| k.then_some(t))
+            .collect(),
+    ];
 
     // Keep the vertices the tetrahedra use, numbered in lattice-then-cut order.
     let total = lattice.vertex_count() + cuts.len();

@@ -22,8 +22,6 @@ pub(crate) trait StencilLattice {
     fn half_coords(&self, id: u32) -> [i64; 3];
     /// Whether `id` is a red (cube-centre) vertex.
     fn is_red(&self, id: u32) -> bool;
-    /// Whether to keep a tetrahedron whose four vertices were all warped onto the surface.
-    fn keep_zero_tetrahedron(&self, tet: [u32; 4]) -> bool;
 }
 
 /// Two local vertices of a BCC tetrahedron `[b0, b1, r0, r1]` share a long edge when they are
@@ -177,7 +175,7 @@ pub(crate) fn fill<L: StencilLattice>(
     let v = |i: usize| tet[i];
     let cut = |i: usize, j: usize| lattice.cut(tet[i], tet[j]);
     match (np, nn) {
-        (0, _) if nz == 4 && lattice.keep_zero_tetrahedron(tet) => out.push(tet),
+        // Nothing inside; a tetrahedron with all four vertices on the surface is the caller's choice.
         (0, _) => {}
         (_, 0) => out.push(tet),
         (1, 3) => {
