@@ -757,12 +757,12 @@ mod tests {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// M + h² ∇²E on the free DOFs by central differences of the force (dense).
-    fn finite_difference_hessian(
+    /// ∇²E on the free DOFs (the spring part alone, N/m) by central differences of the force
+    /// (dense).
+    fn finite_difference_spring_hessian(
         mesh: &SpringMesh<3>,
         x: &[Vector3<f64>],
         free: &FreeDofs,
-        h: f64,
     ) -> DMatrix<f64> {
         let n = mesh.vertex_count();
         let nf = free.free_count();
@@ -794,13 +794,7 @@ mod tests {
             3 * nf,
             fd::suggested_step(shortest),
         );
-        let mut reference = -jac * (h * h);
-        for (f, &v) in free.free_vertices().iter().enumerate() {
-            for a in 0..3 {
-                reference[(3 * f + a, 3 * f + a)] += mesh.masses()[v as usize];
-            }
-        }
-        reference
+        -jac
     }
 
     fn assemble(
@@ -842,6 +836,12 @@ mod tests {
         }
     }
 
+    /// The assembled matrix against finite differences, in two parts, so that neither hides in
+    /// the other: the spring part ∇²E (assembled with zero masses and h = 1) against central
+    /// differences of the force, relative to the spring part's own largest entry (with the
+    /// masses in, M dominates M + h²∇²E at small h: beam-1 at h = 1e-3 would let a 2 % error in
+    /// the springs pass); then the matrix with the masses and `h` against M + h² times that
+    /// spring part, which checks where the masses go and the h² scaling.
     fn check_against_finite_differences(
         mesh: &SpringMesh<3>,
         x: &[Vector3<f64>],
@@ -849,17 +849,42 @@ mod tests {
         h: f64,
     ) {
         let free = FreeDofs::new(mesh.vertex_count(), pinned).unwrap();
+        let no_masses = vec![0.0; mesh.vertex_count()];
+        let (pattern, values) =
+            assemble(mesh, x, Some(&free), &no_masses, 1.0, Definiteness::Exact);
+        let springs = dense(pattern.matrix(&values));
+        let reference = finite_difference_spring_hessian(mesh, x, &free);
+        // Central differences with a step of 1e-5 × the shortest spring: each entry is off by
+        // ~1e-10 of the largest entry (see `fd`); 1e-6 of the largest entry leaves room for sums
+        // over neighbours and is still far below a 2 % error in any spring's block.
+        let scale = springs.amax();
+        let error = (&springs - &reference).amax();
+        assert!(
+            error <= 1e-6 * scale,
+            "assembled ∇²E differs from finite differences by {error} (largest entry {scale})"
+        );
+        assert_exactly_symmetric(&springs);
+
         let (pattern, values) =
             assemble(mesh, x, Some(&free), mesh.masses(), h, Definiteness::Exact);
         let a = dense(pattern.matrix(&values));
-        let reference = finite_difference_hessian(mesh, x, &free, h);
-        // Central differences with h = 1e-5 × the shortest spring: each entry is off by ~1e-10 of the
-        // largest entry (see `fd`); 1e-6 of the largest entry leaves room for sums over neighbours.
-        let scale = a.amax();
-        let error = (&a - &reference).amax();
+        let mut expected = &springs * (h * h);
+        let mut largest_mass: f64 = 0.0;
+        for (f, &v) in free.free_vertices().iter().enumerate() {
+            let m = mesh.masses()[v as usize];
+            largest_mass = largest_mass.max(m);
+            for c in 0..3 {
+                expected[(3 * f + c, 3 * f + c)] += m;
+            }
+        }
+        // The same products summed with h² inside or outside the sum, and one addition of the
+        // mass: round-off only, a few ulps per summed term (at most ~30 neighbours per block row
+        // here), so 64 ε of the larger part. The spring part's accuracy was checked above.
+        let error = (&a - &expected).amax();
+        let round_off = 64.0 * f64::EPSILON * (largest_mass + h * h * scale);
         assert!(
-            error <= 1e-6 * scale,
-            "assembled Hessian differs from finite differences by {error} (largest entry {scale})"
+            error <= round_off,
+            "M + h²∇²E differs from M + h² (∇²E at h = 1) by {error} (round-off {round_off})"
         );
         assert_exactly_symmetric(&a);
     }
@@ -1433,20 +1458,23 @@ mod tests {
             .collect();
         let free = FreeDofs::new(n, &[0]).unwrap();
         let pattern = HessianPattern::<2>::new(n, mesh.springs(), Some(&free));
-        let mut values = pattern.new_values();
-        let h = 0.01;
-        let params = HessianParams::default();
-        pattern.assemble_into(
-            mesh.springs(),
-            &x,
-            mesh.masses(),
-            h,
-            params,
-            &mut pattern.workspace(),
-            &mut values,
-        );
-        let a = dense(pattern.matrix(&values));
-        assert_exactly_symmetric(&a);
+        let assembled = |masses: &[f64], h: f64| {
+            let mut values = pattern.new_values();
+            pattern.assemble_into(
+                mesh.springs(),
+                &x,
+                masses,
+                h,
+                HessianParams::default(),
+                &mut pattern.workspace(),
+                &mut values,
+            );
+            dense(pattern.matrix(&values))
+        };
+        // The spring part alone (zero masses, h = 1), as in 3D: with the masses in, M would
+        // dominate the scale of the comparison.
+        let springs = assembled(&vec![0.0; n], 1.0);
+        assert_exactly_symmetric(&springs);
         let mut flat = Vec::new();
         for &v in free.free_vertices() {
             flat.extend_from_slice(x[v as usize].as_slice());
@@ -1482,18 +1510,29 @@ mod tests {
             flat.len(),
             fd::suggested_step(shortest),
         );
-        let mut reference = -jac * (h * h);
+        // As in 3D: ~1e-10 of the largest entry per finite difference, 1e-6 leaves room.
+        let scale = springs.amax();
+        let error = (&springs + &jac).amax();
+        assert!(
+            error <= 1e-6 * scale,
+            "2D ∇²E off by {error} (largest entry {scale})"
+        );
+        // With the masses and h = 0.01: M + h² times that spring part, to round-off (as in 3D).
+        let h = 0.01;
+        let a = assembled(mesh.masses(), h);
+        assert_exactly_symmetric(&a);
+        let mut expected = &springs * (h * h);
         for (f, &v) in free.free_vertices().iter().enumerate() {
             for c in 0..2 {
-                reference[(2 * f + c, 2 * f + c)] += mesh.masses()[v as usize];
+                expected[(2 * f + c, 2 * f + c)] += mesh.masses()[v as usize];
             }
         }
-        // As in 3D: ~1e-10 of the largest entry per finite difference, 1e-6 leaves room.
-        let error = (&a - &reference).amax();
+        let largest_mass = mesh.masses().iter().cloned().fold(0.0, f64::max);
+        let round_off = 64.0 * f64::EPSILON * (largest_mass + h * h * scale);
+        let error = (&a - &expected).amax();
         assert!(
-            error <= 1e-6 * a.amax(),
-            "2D Hessian off by {error} (largest entry {})",
-            a.amax()
+            error <= round_off,
+            "2D M + h²∇²E off by {error} (round-off {round_off})"
         );
     }
 

@@ -74,9 +74,9 @@ pub(crate) struct RunArgs {
     /// limit (newton, default 100), iterations per step (pd, default 10).
     #[arg(long, value_name = "K")]
     iterations: Option<usize>,
-    /// Relative tolerance, > 0: the linear solver's residual (linearized, default 1e-8), Newton's
-    /// gradient (newton, default 1e-8), PD's position change per iteration (pd, default: none,
-    /// run all iterations).
+    /// Relative tolerance: the linear solver's residual (linearized, > 0, default 1e-8), Newton's
+    /// gradient (newton, ≥ 0, default 1e-8), PD's position change per iteration (pd, ≥ 0, default
+    /// 0: run all iterations).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     tolerance: Option<f64>,
     /// Number of frames to run (default: the scene's).

@@ -462,7 +462,9 @@ pub struct SolverOptions {
     /// iterations per step (pd). At least 1.
     pub iterations: Option<usize>,
     /// Tolerance, relative: the linear solver's residual (linearized), Newton's gradient (newton),
-    /// PD's position change (pd). Finite and positive.
+    /// PD's position change (pd). Finite; > 0 for the linearised integrator, ≥ 0 for Newton and PD
+    /// (0: Newton stops only at its iteration limit or the round-off floor, PD always runs its
+    /// iterations).
     pub tolerance: Option<f64>,
 }
 
@@ -500,13 +502,34 @@ impl Settings {
         Ok(())
     }
 
-    /// Apply `options` to the solver of `self.integrator` (set the integrator first).
+    /// Apply `options` to the solver of `self.integrator` (set the integrator first). The values
+    /// are checked by that solver's own `validate` ([`LinearizedParams::validate`],
+    /// [`hooke_solvers::NewtonParams::validate`], [`hooke_solvers::PdParams::validate`]), the one
+    /// rule for each: PD and Newton accept a tolerance of 0 (PD then always runs its iterations),
+    /// the linearised integrator's linear solvers need a positive one. On an error the settings
+    /// are unchanged.
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] for β outside [0, 1], a tolerance that is not finite and
-    /// positive, zero iterations, β or a linear solver for another integrator than `linearized`, and
-    /// iterations or a tolerance for an explicit integrator (which solves nothing).
+    /// [`SimError::InvalidParameter`] for β or a linear solver for another integrator than
+    /// `linearized`, iterations or a tolerance for an explicit integrator (which solves nothing),
+    /// and the linearised integrator's values out of range; [`SimError::SolverParameter`] for
+    /// Newton's and PD's (naming the field and its range).
     pub fn apply_options(&mut self, options: &SolverOptions) -> Result<(), SimError> {
+        let mut candidate = *self;
+        candidate.apply_unchecked(options)?;
+        match self.integrator {
+            Integrator::Linearized => candidate.linearized.validate()?,
+            Integrator::Newton => candidate.newton.validate()?,
+            Integrator::ProjectiveDynamics => candidate.pd.validate()?,
+            _ => {}
+        }
+        *self = candidate;
+        Ok(())
+    }
+
+    /// [`Settings::apply_options`] without the solvers' range checks: only whether each option
+    /// applies to the integrator.
+    fn apply_unchecked(&mut self, options: &SolverOptions) -> Result<(), SimError> {
         let integrator = self.integrator;
         let only_linearized = |name: &str, value: String| {
             SimError::invalid(
@@ -516,7 +539,6 @@ impl Settings {
             )
         };
         if let Some(beta) = options.beta {
-            check_beta(beta)?;
             if integrator != Integrator::Linearized {
                 return Err(only_linearized("beta", beta.to_string()));
             }
@@ -540,7 +562,6 @@ impl Settings {
             )
         };
         if let Some(iterations) = options.iterations {
-            check_iterations(iterations)?;
             match integrator {
                 Integrator::Linearized => self.linearized.max_iterations = iterations,
                 Integrator::Newton => self.newton.max_iterations = iterations,
@@ -552,7 +573,6 @@ impl Settings {
             }
         }
         if let Some(tolerance) = options.tolerance {
-            check_tolerance(tolerance)?;
             match integrator {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
                 Integrator::Newton => self.newton.tolerance = tolerance,
@@ -735,10 +755,18 @@ mod tests {
             ),
             (
                 SolverOptions {
-                    tolerance: Some(0.0),
+                    tolerance: Some(-1e-12),
                     ..Default::default()
                 },
                 Integrator::Newton,
+                "tolerance",
+            ),
+            (
+                SolverOptions {
+                    tolerance: Some(0.0),
+                    ..Default::default()
+                },
+                Integrator::Linearized,
                 "tolerance",
             ),
             (
@@ -778,8 +806,110 @@ mod tests {
                 integrator,
                 ..Settings::default()
             };
+            let before = s;
             let err = s.apply_options(&options).unwrap_err().to_string();
             assert!(err.contains(expected), "{options:?} on {integrator}: {err}");
+            assert_eq!(s, before, "a refused option leaves the settings unchanged");
         }
+    }
+
+    /// One rule: an iteration count or a tolerance given by name is accepted exactly when the
+    /// chosen solver's own `validate` accepts it in its params (PD and Newton take a tolerance of 0,
+    /// PD's default), whatever the value.
+    #[test]
+    fn options_are_accepted_exactly_when_the_solvers_validate_accepts_them() {
+        let tolerances = [
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            1e-8,
+            1.0,
+            1e300,
+            -1e-12,
+            -1.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for integrator in [
+            Integrator::Linearized,
+            Integrator::Newton,
+            Integrator::ProjectiveDynamics,
+        ] {
+            for &tolerance in &tolerances {
+                let mut s = Settings {
+                    integrator,
+                    ..Settings::default()
+                };
+                let mut direct = s;
+                let valid = match integrator {
+                    Integrator::Linearized => {
+                        direct.linearized.tolerance = tolerance;
+                        direct.linearized.validate().is_ok()
+                    }
+                    Integrator::Newton => {
+                        direct.newton.tolerance = tolerance;
+                        direct.newton.validate().is_ok()
+                    }
+                    _ => {
+                        direct.pd.tolerance = tolerance;
+                        direct.pd.validate().is_ok()
+                    }
+                };
+                let applied = s.apply_options(&SolverOptions {
+                    tolerance: Some(tolerance),
+                    ..Default::default()
+                });
+                assert_eq!(
+                    applied.is_ok(),
+                    valid,
+                    "{integrator}, tolerance {tolerance}"
+                );
+                if valid {
+                    assert_eq!(s, direct);
+                }
+            }
+            for iterations in [0, 1, 7, usize::MAX] {
+                let mut s = Settings {
+                    integrator,
+                    ..Settings::default()
+                };
+                let mut direct = s;
+                let valid = match integrator {
+                    Integrator::Linearized => {
+                        direct.linearized.max_iterations = iterations;
+                        direct.linearized.validate().is_ok()
+                    }
+                    Integrator::Newton => {
+                        direct.newton.max_iterations = iterations;
+                        direct.newton.validate().is_ok()
+                    }
+                    _ => {
+                        direct.pd.max_iterations = iterations;
+                        direct.pd.validate().is_ok()
+                    }
+                };
+                let applied = s.apply_options(&SolverOptions {
+                    iterations: Some(iterations),
+                    ..Default::default()
+                });
+                assert_eq!(
+                    applied.is_ok(),
+                    valid,
+                    "{integrator}, iterations {iterations}"
+                );
+            }
+        }
+        // The case that disagreed before: PD with a tolerance of 0, its own default.
+        let mut pd = Settings {
+            integrator: Integrator::ProjectiveDynamics,
+            ..Settings::default()
+        };
+        pd.apply_options(&SolverOptions {
+            tolerance: Some(0.0),
+            ..Default::default()
+        })
+        .unwrap();
+        assert_eq!(pd.pd.tolerance, 0.0);
     }
 }

@@ -238,7 +238,8 @@ impl Relaxation {
     /// shares, the coverage, the concentration and the tolerances finite and ≥ 0 (a share above 1
     /// counts as 1, a concentration above 1 never eliminates); the
     /// counts at most [`MAX_RELAXATION_COUNT`], the rings at most [`MAX_RINGS`], the covers at
-    /// most [`MAX_PATCH_COVERS`] (and at least 1 when the elimination is on).
+    /// most [`MAX_PATCH_COVERS`] (and at least 1 when the elimination is on); with the elimination
+    /// on, the inner solves' settings ([`Relaxation::inner_params`]) too.
     ///
     /// # Errors
     /// [`ParamError`] naming the first field out of range.
@@ -277,7 +278,26 @@ impl Relaxation {
         params::non_negative("Relaxation::region_tolerance", self.region_tolerance)?;
         count("Relaxation::region_iterations", self.region_iterations)?;
         count("Relaxation::region_sweeps", self.region_sweeps)?;
+        if self.region_blocks(1) > 0 {
+            // The elimination's inner solves are set up from these fields: checked here, where the
+            // relaxation enters, so that no patch solve is refused for its settings mid-step.
+            self.inner_params().validate()?;
+        }
         Ok(())
+    }
+
+    /// The settings of the elimination's inner [`Newton`] on a patch: tolerance
+    /// [`Relaxation::region_tolerance`] (a solve raises it to the patch's round-off floor, never
+    /// lowers it), [`Relaxation::region_iterations`] iterations, the relaxation
+    /// [`Relaxation::inner`], and the defaults otherwise. Valid whenever this relaxation is, with
+    /// the elimination on ([`Relaxation::validate`] checks them).
+    pub fn inner_params(&self) -> NewtonParams {
+        NewtonParams {
+            tolerance: self.region_tolerance,
+            max_iterations: self.region_iterations,
+            relaxation: self.inner(),
+            ..NewtonParams::default()
+        }
     }
 
     /// No relaxation: plain Newton.
@@ -366,6 +386,11 @@ pub struct RelaxationWork {
     /// ([`Relaxation::region_concentration`]), and patches selected but not solved because their
     /// gradient was round-off.
     pub skipped_regions: usize,
+    /// Patches selected but not solved because the inner solves' settings
+    /// ([`Relaxation::inner_params`]) were refused. Always 0 under [`Newton`], which validates the
+    /// relaxation before it relaxes; only a direct [`NewtonProblem::relax`] call with settings
+    /// that fail [`Relaxation::validate`] can meet it.
+    pub refused_regions: usize,
     /// Blocks in the patches solved (with their rings), summed over the patches.
     pub region_blocks: usize,
     /// The inner Newton's iterations.

@@ -536,3 +536,89 @@ fn a_huge_iteration_limit_allocates_nothing_by_it_and_finishes() {
         );
     }
 }
+
+/// The elimination's inner solves never meet settings they refuse: [`Relaxation::validate`] checks
+/// them ([`Relaxation::inner_params`]) where the relaxation enters, over extreme values of every
+/// field; and a direct [`NewtonProblem::relax`] call with unchecked settings that the inner Newton
+/// refuses reports the patches it could not solve ([`RelaxationWork::refused_regions`]) instead of
+/// skipping them silently.
+#[test]
+fn the_eliminations_inner_settings_are_checked_where_the_relaxation_enters() {
+    let reals = [0.0, -1.0, f64::NAN, f64::INFINITY, 1e300, 1e-300, 0.5, 2.0];
+    let counts = [0, 1, 3, 10_000, 10_001, usize::MAX];
+    let mut checked = 0;
+    let mut settings = Vec::new();
+    for field in 0..NEWTON_COUNTS {
+        for &value in &counts {
+            let mut params = NewtonParams::default();
+            set_newton_count(&mut params, field, value);
+            settings.push(params);
+        }
+    }
+    for field in 0..NEWTON_REALS {
+        for &value in &reals {
+            let mut params = NewtonParams::default();
+            set_newton_real(&mut params, field, value);
+            settings.push(params);
+        }
+    }
+    for params in settings {
+        {
+            let relaxation = params.relaxation;
+            if relaxation.validate().is_ok() && relaxation.region_blocks(1) > 0 {
+                assert_eq!(
+                    relaxation.inner_params().validate(),
+                    Ok(()),
+                    "{relaxation:?}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 0, "some extreme settings keep the elimination on");
+
+    // Inner sweeps beyond the limit: refused on entry, naming the field...
+    let n = 8;
+    let mesh = generators::cloth(n, 1e3).unwrap();
+    let pinned = [0u32, n as u32 - 1];
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let relaxation = Relaxation {
+        sweeps: 0,
+        focus_share: 0.0,
+        region_concentration: 0.0,
+        region_sweeps: hooke_solvers::MAX_RELAXATION_COUNT + 1,
+        ..Relaxation::default()
+    };
+    assert_eq!(
+        relaxation.validate().map_err(|e| e.field()),
+        Err("Relaxation::region_sweeps")
+    );
+    // ...and, given to `relax` unchecked, reported patch by patch (the same state with valid
+    // settings solves patches: see `the_elimination_leaves_a_region_of_round_off_alone`).
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, 1.0 / 30.0);
+    let mut y = mesh.positions().to_vec();
+    y.iter_mut().skip(1).step_by(2).for_each(|p| p.y += 0.01);
+    for (relaxation, refused) in [
+        (relaxation, true),
+        (
+            Relaxation {
+                region_sweeps: 10,
+                ..relaxation
+            },
+            false,
+        ),
+    ] {
+        let mut x = vec![0.0; step.dim()];
+        step.set_step(&y, mesh.positions(), &mut x);
+        let before = x.clone();
+        let work = step.relax(&mut x, relaxation).unwrap();
+        if refused {
+            assert!(work.refused_regions > 0, "{work:?}");
+            assert_eq!(work.region_solves, 0, "{work:?}");
+            assert_eq!(x, before, "a refused patch does not move");
+        } else {
+            assert_eq!(work.refused_regions, 0, "{work:?}");
+            assert!(work.region_solves > 0, "{work:?}");
+        }
+    }
+}

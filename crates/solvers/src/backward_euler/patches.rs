@@ -386,13 +386,15 @@ impl<const D: usize> BackwardEulerStep<D> {
             let patch = cover.patches[best]
                 .as_mut()
                 .expect("only analysed patches hold heat");
-            if self.solve_patch(patch, relaxation) {
-                work.region_solves += 1;
-                work.region_blocks += patch.own;
-                work.region_iterations += patch.report.iterations;
-                work.region_factorizations += patch.report.factorizations;
-            } else {
-                work.skipped_regions += 1;
+            match self.solve_patch(patch, relaxation) {
+                PatchSolve::Solved => {
+                    work.region_solves += 1;
+                    work.region_blocks += patch.own;
+                    work.region_iterations += patch.report.iterations;
+                    work.region_factorizations += patch.report.factorizations;
+                }
+                PatchSolve::Skipped => work.skipped_regions += 1,
+                PatchSolve::Refused => work.refused_regions += 1,
             }
             for &v in &patch.vertices[..patch.own] {
                 cover.uncovered[v as usize] = false;
@@ -405,8 +407,8 @@ impl<const D: usize> BackwardEulerStep<D> {
     }
 
     /// Load the current state into `patch`, solve it and move its own vertices in `x`; whether it
-    /// was solved (not if its gradient is round-off or not finite).
-    fn solve_patch(&mut self, patch: &mut Patch<D>, relaxation: Relaxation) -> bool {
+    /// was solved (not if its gradient is round-off or not finite, nor if its settings are refused).
+    fn solve_patch(&mut self, patch: &mut Patch<D>, relaxation: Relaxation) -> PatchSolve {
         for (k, &v) in patch.vertices.iter().enumerate() {
             let v = v as usize;
             patch.y[k] = self.y[v];
@@ -429,26 +431,40 @@ impl<const D: usize> BackwardEulerStep<D> {
         let floor = REGION_NOISE_FACTOR * step.gradient_round_off(&patch.unknowns);
         // (A NaN norm, too: nothing finite to solve.)
         if norm.is_nan() || norm <= floor {
-            return false;
+            return PatchSolve::Skipped;
         }
+        // Valid when the relaxation came through `Relaxation::validate` (Newton's path), which
+        // checks `inner_params`; raising the tolerance to the floor (finite, as norm > floor)
+        // keeps it so. Only a direct `relax` call with unchecked settings meets `Refused`.
         patch.newton.params = NewtonParams {
             tolerance: relaxation.region_tolerance.max(floor / norm),
-            max_iterations: relaxation.region_iterations,
-            relaxation: relaxation.inner(),
-            ..NewtonParams::default()
+            ..relaxation.inner_params()
         };
         match patch
             .newton
             .minimize_into(step, &mut patch.unknowns, &mut patch.report)
         {
             Ok(()) | Err(Failure::LineSearchFailed) | Err(Failure::NotPositiveDefinite { .. }) => {}
-            Err(_) => return false,
+            // Non-finite values or a failed factorisation: the patch keeps its start.
+            Err(Failure::NonFinite | Failure::Factorization(_)) => return PatchSolve::Skipped,
+            Err(Failure::InvalidParameter(_)) => return PatchSolve::Refused,
         }
         for (k, &v) in patch.vertices[..patch.own].iter().enumerate() {
             self.x[v as usize] = SVector::from_column_slice(&patch.unknowns[D * k..D * k + D]);
         }
-        true
+        PatchSolve::Solved
     }
+}
+
+/// How [`BackwardEulerStep::solve_patch`] ended.
+enum PatchSolve {
+    /// Solved: its own vertices moved in `x`.
+    Solved,
+    /// Not solved: its gradient is round-off or not finite, or the inner solve met non-finite
+    /// values or a failed factorisation (the patch keeps its start).
+    Skipped,
+    /// Not solved: the inner settings ([`Relaxation::inner_params`]) were refused.
+    Refused,
 }
 
 #[cfg(test)]
