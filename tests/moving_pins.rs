@@ -118,9 +118,18 @@ fn pinned_edge_follows_its_path_under_every_integrator_and_pd_keeps_its_factor()
         let start = state.positions.clone();
         let mut sim = Simulation::new(scene, state, settings(integrator)).unwrap();
         let factor_time = sim.factorization_time();
+        // The methods that hold PD's prefactored matrix (PD itself, and those that use it as a
+        // preconditioner or initial Hessian) report its factorisation time.
         assert_eq!(
             factor_time.is_some(),
-            integrator == Integrator::ProjectiveDynamics
+            matches!(
+                integrator,
+                Integrator::ProjectiveDynamics
+                    | Integrator::ChebyshevPd
+                    | Integrator::Lbfgs
+                    | Integrator::NewtonCg
+            ),
+            "{integrator}"
         );
         for step in 1..=24 {
             sim.step()

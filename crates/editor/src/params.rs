@@ -139,6 +139,13 @@ pub enum IntegratorChoice {
     /// Backward Euler by projective dynamics (10 iterations a step).
     #[serde(rename = "pd")]
     ProjectiveDynamics,
+    /// Backward Euler by L-BFGS, the PD matrix as its initial Hessian.
+    Lbfgs,
+    /// Backward Euler by Newton-CG, preconditioned by the PD factor.
+    NewtonCg,
+    /// Projective dynamics with Chebyshev acceleration (10 iterations a step).
+    #[serde(rename = "pd-chebyshev")]
+    ChebyshevPd,
 }
 
 impl IntegratorChoice {
@@ -150,6 +157,9 @@ impl IntegratorChoice {
         IntegratorChoice::LinearizedJacobi,
         IntegratorChoice::Newton,
         IntegratorChoice::ProjectiveDynamics,
+        IntegratorChoice::Lbfgs,
+        IntegratorChoice::NewtonCg,
+        IntegratorChoice::ChebyshevPd,
     ];
 
     /// The name shown and written to STATE.json.
@@ -161,6 +171,9 @@ impl IntegratorChoice {
             IntegratorChoice::LinearizedJacobi => "linearized-jacobi",
             IntegratorChoice::Newton => "newton",
             IntegratorChoice::ProjectiveDynamics => "pd",
+            IntegratorChoice::Lbfgs => "lbfgs",
+            IntegratorChoice::NewtonCg => "newton-cg",
+            IntegratorChoice::ChebyshevPd => "pd-chebyshev",
         }
     }
 
@@ -192,6 +205,9 @@ impl IntegratorChoice {
             },
             Integrator::Newton => IntegratorChoice::Newton,
             Integrator::ProjectiveDynamics => IntegratorChoice::ProjectiveDynamics,
+            Integrator::Lbfgs => IntegratorChoice::Lbfgs,
+            Integrator::NewtonCg => IntegratorChoice::NewtonCg,
+            Integrator::ChebyshevPd => IntegratorChoice::ChebyshevPd,
             _ => IntegratorChoice::SymplecticEuler,
         }
     }
@@ -217,6 +233,9 @@ impl IntegratorChoice {
             }
             IntegratorChoice::Newton => Integrator::Newton,
             IntegratorChoice::ProjectiveDynamics => Integrator::ProjectiveDynamics,
+            IntegratorChoice::Lbfgs => Integrator::Lbfgs,
+            IntegratorChoice::NewtonCg => Integrator::NewtonCg,
+            IntegratorChoice::ChebyshevPd => Integrator::ChebyshevPd,
         };
         settings
     }
@@ -225,6 +244,9 @@ impl IntegratorChoice {
     /// dynamics does not: its one constant matrix cannot hold the dashpot's direction-dependent
     /// Jacobian, so the editor runs it without the dashpot and says so).
     pub fn models_dashpot(&self) -> bool {
-        !matches!(self, IntegratorChoice::ProjectiveDynamics)
+        !matches!(
+            self,
+            IntegratorChoice::ProjectiveDynamics | IntegratorChoice::ChebyshevPd
+        )
     }
 }

@@ -13,8 +13,8 @@ pub enum SolverFailure {
     /// [`crate::Integrator::Newton`]), so it is the failure of the smallest piece tried.
     #[error("Newton: {0}")]
     Newton(#[from] NewtonError),
-    /// Backward Euler by L-BFGS: its error, with its report (halved first, as Newton's; boxed,
-    /// as the report is large).
+    /// Backward Euler by L-BFGS: its error, with its report (boxed, as the report is large). L-BFGS
+    /// does not halve: this is the step's own failure.
     #[error("L-BFGS: {0}")]
     Lbfgs(Box<LbfgsError>),
     /// Backward Euler by Newton-CG: its error, with its report (halved first, as Newton's).

@@ -37,8 +37,10 @@ pub enum Integrator {
     /// Backward Euler solved by L-BFGS (Liu, Bouaziz and Kavan 2017) to [`Settings::lbfgs`]'s
     /// tolerance: the same Φ as Newton (every force, damping and pin method), the prefactored PD
     /// matrix K(A + h²L)Kᵀ as the initial inverse Hessian (one solve per iteration, no
-    /// factorisation per step), a line search that never accepts a rise of Φ. A step that does
-    /// not converge is halved as Newton's is.
+    /// factorisation per step), a line search that never accepts a rise of Φ. Like projective
+    /// dynamics it runs to a budget: a step that reaches the iteration limit keeps its last iterate
+    /// and is reported as not converged (halving, as Newton does, would split a stiff frame into
+    /// hundreds of pieces at L-BFGS's linear rate).
     Lbfgs,
     /// Backward Euler solved by truncated Newton ([`Settings::newton_cg`]): conjugate gradient on
     /// the exact Hessian, preconditioned by the PD factor, with Eisenstat–Walker forcing terms and
@@ -504,7 +506,8 @@ impl Settings {
 
     /// Apply `options` to the solver of `self.integrator` (set the integrator first). The values
     /// are checked by that solver's own `validate` ([`LinearizedParams::validate`],
-    /// [`hooke_solvers::NewtonParams::validate`], [`hooke_solvers::PdParams::validate`]), the one
+    /// [`hooke_solvers::NewtonParams::validate`], [`hooke_solvers::PdParams::validate`], and
+    /// likewise L-BFGS's, Newton-CG's and Chebyshev PD's), the one
     /// rule for each: PD and Newton accept a tolerance of 0 (PD then always runs its iterations),
     /// the linearised integrator's linear solvers need a positive one. On an error the settings
     /// are unchanged.
@@ -521,6 +524,9 @@ impl Settings {
             Integrator::Linearized => candidate.linearized.validate()?,
             Integrator::Newton => candidate.newton.validate()?,
             Integrator::ProjectiveDynamics => candidate.pd.validate()?,
+            Integrator::Lbfgs => candidate.lbfgs.validate()?,
+            Integrator::NewtonCg => candidate.newton_cg.validate()?,
+            Integrator::ChebyshevPd => candidate.chebyshev.validate()?,
             _ => {}
         }
         *self = candidate;
