@@ -5,9 +5,13 @@
 //!   and block [`Jacobi`], which return `Result<`[`Report`]`, `[`SolveError`]`>`;
 //! - [`SparseCholesky`] (faer, symbolic analysis reused), `Result<_, `[`CholeskyError`]`>`;
 //! - [`Newton`] on a [`NewtonProblem`] (LDLᵀ with inertia, an indefinite-Hessian policy, a line
-//!   search and a nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's problem), which
-//!   returns `Result<`[`NewtonReport`]`, `[`NewtonError`]`>`;
-//! - [`ProjectiveDynamics`] for a backward Euler step, `Result<`[`PdReport`]`, `[`PdError`]`>`.
+//!   search, and an opt-in nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's
+//!   problem), which returns `Result<`[`NewtonReport`]`, `[`NewtonError`]`>`;
+//! - [`ProjectiveDynamics`] for a backward Euler step, `Result<`[`PdReport`]`, `[`PdError`]`>`,
+//!   and [`ChebyshevPd`], its Chebyshev-accelerated form;
+//! - [`Lbfgs`] (the PD matrix as initial Hessian) and [`NewtonCg`] (CG on the exact Hessian,
+//!   preconditioned by the PD factor) on a [`NewtonProblem`], with PD's factor as their
+//!   [`Preconditioner`].
 //!
 //! Every solver takes a `Copy + Default` parameter struct with a `validate()` that names the
 //! first field out of its range ([`ParamError`]); the solver calls it where the struct enters (its

@@ -16,13 +16,21 @@
 //!   shift otherwise (converges to a stationary point of Φ);
 //! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite.
 //!
-//! After every accepted step the problem may relax the iterate ([`NewtonProblem::relax`],
-//! [`Relaxation`], on by default): for backward Euler, Gauss–Seidel sweeps of per-vertex Newton
+//! With the defaults ([`NewtonParams::default`]) a solve is: from x⁰, up to 100 iterations, each
+//! one LDLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
+//! positive definite), the step −H⁻¹∇Φ shortened by halving (up to 40 times) until Φ falls by at
+//! least 1e-4 of what the linear model predicts (Armijo), until ‖∇Φ‖ ≤ 1e-8 ‖∇Φ(x⁰)‖. Nothing
+//! else: these defaults were chosen on a table of scenes (cloth-10 to cloth-160, beam-4, beam-8
+//! and SCENES.md's eight hard cases; `benches/results/issue15-newton-default.md`), on which
+//! this plain Newton is as fast as or faster than every variant tried except on the crushed cloth.
+//!
+//! Opt-in, after every accepted step the problem may relax the iterate ([`NewtonProblem::relax`],
+//! [`Relaxation::BUCKLING`]): for backward Euler, Gauss–Seidel sweeps of per-vertex Newton
 //! steps, focused sweeps over the hottest vertices, and a nonlinear elimination that solves the
 //! patches of a fixed cover holding a fold; skipped after an exact full step whose decrease of Φ
-//! its quadratic model predicted within 2 % ([`Relaxation::trusted_model`]). This is what makes
-//! buckling cloth converge in few iterations; the measurements behind every default, and the
-//! variants tried and not kept, are in `benches/results/newton-history.md`.
+//! its quadratic model predicted within 2 % ([`Relaxation::trusted_model`]). It pays on crushed
+//! and buckling cloth, where the error sits in a few folds, and costs more than it saves
+//! elsewhere.
 //!
 //! The line search compares Φ(x + αΔ) − Φ(x) computed by [`NewtonProblem::objective_change`],
 //! which problems implement without the cancellation of subtracting two values of Φ.
@@ -212,25 +220,38 @@ pub struct Relaxation {
 }
 
 impl Default for Relaxation {
+    /// [`Relaxation::NONE`]: Newton's default is plain Newton (see [`Relaxation::BUCKLING`] for the
+    /// preset, and the module documentation for why it is not the default).
     fn default() -> Self {
-        Relaxation {
-            sweeps: 10,
-            block_iterations: 3,
-            focus_share: 1.0 / 256.0,
-            focus_rings: 2,
-            focus_sweeps: 50,
-            trusted_model: 0.02,
-            region_share: 1.0 / 64.0,
-            patch_share: 1.0 / 32.0,
-            patch_covers: 2,
-            region_rings: 3,
-            region_coverage: 0.7,
-            region_concentration: 0.5,
-            region_tolerance: 1e-6,
-            region_iterations: 30,
-            region_sweeps: 10,
-        }
+        Relaxation::NONE
     }
+}
+
+impl Relaxation {
+    /// The relaxation stack tuned for buckling cloth (every field's documentation gives its value
+    /// here): sweeps, focused sweeps and the nonlinear elimination over patches. Opt-in: it pays
+    /// where a step's error sits in a fold of a crushed or buckling sheet (SCENES.md's crushed
+    /// cloth-40 at 3 frames: 5.4 s against 24.7 s for plain Newton, release build), and costs more
+    /// than it saves elsewhere (cloth-80's speed-vs-error step 1.30 s against 0.77 s; cloth-10 to
+    /// 80, beams and the other seven hard cases are as fast or faster without it). Its patches are
+    /// built the first time the elimination runs, not before.
+    pub const BUCKLING: Relaxation = Relaxation {
+        sweeps: 10,
+        block_iterations: 3,
+        focus_share: 1.0 / 256.0,
+        focus_rings: 2,
+        focus_sweeps: 50,
+        trusted_model: 0.02,
+        region_share: 1.0 / 64.0,
+        patch_share: 1.0 / 32.0,
+        patch_covers: 2,
+        region_rings: 3,
+        region_coverage: 0.7,
+        region_concentration: 0.5,
+        region_tolerance: 1e-6,
+        region_iterations: 30,
+        region_sweeps: 10,
+    };
 }
 
 impl Relaxation {
@@ -425,7 +446,8 @@ pub struct NewtonParams {
     /// [`IndefinitePolicy::ConvexBlend`].
     pub indefinite: IndefinitePolicy,
     /// Nonlinear relaxation after every accepted step, where the problem supports it. Default
-    /// [`Relaxation::default`]; [`Relaxation::NONE`] for plain Newton.
+    /// [`Relaxation::NONE`] (plain Newton); [`Relaxation::BUCKLING`] is the preset for buckling
+    /// and crushed cloth.
     pub relaxation: Relaxation,
     /// Factorisation settings.
     pub cholesky: CholeskyParams,
@@ -527,7 +549,7 @@ impl Default for NewtonParams {
             blend_factor: 3.0,
             max_shift: 1e12,
             indefinite: IndefinitePolicy::ConvexBlend,
-            relaxation: Relaxation::default(),
+            relaxation: Relaxation::NONE,
             cholesky: CholeskyParams::default(),
         }
     }
@@ -1019,9 +1041,6 @@ impl Newton {
         p.validate().map_err(Failure::InvalidParameter)?;
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
-        }
-        if !p.relaxation.is_none() {
-            problem.prepare_relaxation(p.relaxation);
         }
         let mut phi = problem.objective(x);
         problem.gradient(x, &mut self.g);

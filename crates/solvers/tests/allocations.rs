@@ -100,11 +100,11 @@ fn solvers_do_not_allocate_per_iteration() {
     // spread out, which would leave the sweeps and the elimination unmeasured). The elimination's
     // patches are built once, before the first iteration of the first solve.
     for relaxation in [
-        Relaxation::default(),
+        Relaxation::BUCKLING,
         Relaxation {
             trusted_model: 0.0,
             region_concentration: 0.0,
-            ..Relaxation::default()
+            ..Relaxation::BUCKLING
         },
     ] {
         let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
@@ -147,7 +147,7 @@ fn solvers_do_not_allocate_per_iteration() {
                 region_tolerance: 0.0,
                 // Solve the patches however the error is spread.
                 region_concentration: 0.0,
-                ..Relaxation::default()
+                ..Relaxation::BUCKLING
             };
             step.prepare_relaxation(relaxation);
             let mut x = start.clone();

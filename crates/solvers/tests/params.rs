@@ -512,7 +512,7 @@ fn the_values_of_issue_19_are_refused_with_the_field_and_its_range() {
         })
     ));
     assert!(CholeskyParams::default().validate().is_ok());
-    assert!(Relaxation::NONE.validate().is_ok() && Relaxation::default().validate().is_ok());
+    assert!(Relaxation::NONE.validate().is_ok() && Relaxation::BUCKLING.validate().is_ok());
     assert!(NewtonParams::default().validate().is_ok());
 }
 
@@ -548,16 +548,21 @@ fn the_eliminations_inner_settings_are_checked_where_the_relaxation_enters() {
     let counts = [0, 1, 3, 10_000, 10_001, usize::MAX];
     let mut checked = 0;
     let mut settings = Vec::new();
+    // From the relaxation preset (the default relaxes nothing, so has no inner settings).
+    let relaxed = NewtonParams {
+        relaxation: Relaxation::BUCKLING,
+        ..NewtonParams::default()
+    };
     for field in 0..NEWTON_COUNTS {
         for &value in &counts {
-            let mut params = NewtonParams::default();
+            let mut params = relaxed;
             set_newton_count(&mut params, field, value);
             settings.push(params);
         }
     }
     for field in 0..NEWTON_REALS {
         for &value in &reals {
-            let mut params = NewtonParams::default();
+            let mut params = relaxed;
             set_newton_real(&mut params, field, value);
             settings.push(params);
         }
@@ -587,7 +592,7 @@ fn the_eliminations_inner_settings_are_checked_where_the_relaxation_enters() {
         focus_share: 0.0,
         region_concentration: 0.0,
         region_sweeps: hooke_solvers::MAX_RELAXATION_COUNT + 1,
-        ..Relaxation::default()
+        ..Relaxation::BUCKLING
     };
     assert_eq!(
         relaxation.validate().map_err(|e| e.field()),

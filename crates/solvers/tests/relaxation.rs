@@ -99,7 +99,7 @@ proptest! {
             region_iterations,
             // 0: every region counts as concentrated; above 1: none does.
             region_concentration: if concentrated { 0.0 } else { 1.5 },
-            ..Relaxation::default()
+            ..Relaxation::BUCKLING
         };
         prop_assume!(!relaxation.is_none());
         let Case { mut step, start, pinned } = case(n, squeeze, push, dashpot, counter);
@@ -248,7 +248,7 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
         focus_share: 1.0 / free as f64,
         focus_rings: 1,
         focus_sweeps: 5,
-        ..Relaxation::default().without_region()
+        ..Relaxation::BUCKLING.without_region()
     };
     let before = x.clone();
     let mut gradient = vec![0.0; x.len()];
@@ -288,15 +288,19 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
     );
 }
 
-/// Newton with the defaults on a crushed start: converges, blends (the exact Hessian is indefinite
-/// there), and counts its relaxation sweeps; with relaxation off it counts none. (A problem that
-/// cannot relax counts none either: tests/newton.rs.)
+/// Newton with the relaxation preset on a crushed start: converges, blends (the exact Hessian is
+/// indefinite there), and counts its relaxation sweeps; with relaxation off (the default) it counts
+/// none. (A problem that cannot relax counts none either: tests/newton.rs.)
 #[test]
 fn newton_reports_its_blend_and_relaxation() {
     let Case {
         mut step, start, ..
     } = case(8, 0.5, 0.02, 0.0, false);
-    let params = NewtonParams::default();
+    assert_eq!(NewtonParams::default().relaxation, Relaxation::NONE);
+    let params = NewtonParams {
+        relaxation: Relaxation::BUCKLING,
+        ..NewtonParams::default()
+    };
     let mut newton = Newton::new(step.pattern(), params).unwrap();
     let mut x = start.clone();
     let report = newton.minimize(&mut step, &mut x).unwrap();
@@ -336,12 +340,12 @@ fn trusted_exact_steps_skip_the_relaxation() {
     let Case {
         mut step, start, ..
     } = case(6, 1.2, 0.01, 0.0, false);
-    for (trusted_model, skips) in [(Relaxation::default().trusted_model, true), (0.0, false)] {
+    for (trusted_model, skips) in [(Relaxation::BUCKLING.trusted_model, true), (0.0, false)] {
         let params = NewtonParams {
             tolerance: 1e-10,
             relaxation: Relaxation {
                 trusted_model,
-                ..Relaxation::default()
+                ..Relaxation::BUCKLING
             },
             ..NewtonParams::default()
         };
@@ -376,7 +380,7 @@ fn the_elimination_leaves_a_region_of_round_off_alone() {
         sweeps: 0,
         focus_share: 0.0,
         region_concentration: 0.0,
-        ..Relaxation::default()
+        ..Relaxation::BUCKLING
     };
     for (lift, solved) in [(0.0, false), (0.01, true)] {
         let mut y = moved.clone();
@@ -414,7 +418,7 @@ fn the_relaxation_pays_on_a_buckling_step() {
         assert!(report.stop.is_converged(), "{relaxation:?}: {report:?}");
         report
     };
-    let relaxed = solve(Relaxation::default());
+    let relaxed = solve(Relaxation::BUCKLING);
     let plain = solve(Relaxation::NONE);
     eprintln!(
         "buckling step: {} iterations relaxed ({} sweeps, {} patch solves), {} plain",

@@ -68,6 +68,10 @@ pub struct BenchArgs {
     /// With --hard-cases: frames per run.
     #[arg(long, default_value_t = 30, requires = "hard_cases")]
     pub hard_frames: usize,
+    /// With --hard-cases: run only this integrator (repeatable; default: every one of the
+    /// matrix).
+    #[arg(long = "hard-integrator", value_name = "NAME", requires = "hard_cases")]
+    pub hard_integrators: Vec<String>,
     /// Timed repeats of each step after one warm-up run; the median is reported. Steps longer than
     /// 2 s are timed once.
     #[arg(long, default_value_t = 5)]
@@ -126,9 +130,14 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
     };
 
     if args.hard_cases {
+        let chosen: Vec<&str> = args.hard_integrators.iter().map(String::as_str).collect();
         let results = hard_cases(
             HARD_CASES,
-            HARD_INTEGRATORS,
+            if chosen.is_empty() {
+                HARD_INTEGRATORS
+            } else {
+                &chosen
+            },
             HardCaseOptions {
                 frames: args.hard_frames,
                 ..HardCaseOptions::default()

@@ -45,7 +45,7 @@ pub const HARD_INTEGRATORS: &[&str] = &[
     "linearized-cg",
     "linearized-jacobi",
     "newton",
-    "newton-plain",
+    "newton-relaxed",
     "pd",
     "lbfgs",
     "newton-cg",
@@ -56,8 +56,7 @@ pub const HARD_INTEGRATORS: &[&str] = &[
 /// with the integrator chosen), printed with the matrix ([`crate::bench::format_hard_cases`]).
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
      methods take the substeps their stability bound asks for (at most --max-substeps, default \
-     1000); newton's (and newton-plain's, which is newton without the relaxation) iteration limit is 200 \
-     (default 100) before a frame is halved";
+     1000); newton-relaxed is newton with the opt-in relaxation (Relaxation::BUCKLING)";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -263,17 +262,12 @@ pub fn hard_case_settings(
         "linearized-jacobi" => linearized(LinearSolver::Jacobi),
         "newton" => Settings {
             integrator: Integrator::Newton,
-            newton: NewtonParams {
-                max_iterations: 200,
-                ..NewtonParams::default()
-            },
             ..Settings::default()
         },
-        "newton-plain" => Settings {
+        "newton-relaxed" => Settings {
             integrator: Integrator::Newton,
             newton: NewtonParams {
-                max_iterations: 200,
-                relaxation: crate::solvers::Relaxation::NONE,
+                relaxation: crate::solvers::Relaxation::BUCKLING,
                 ..NewtonParams::default()
             },
             ..Settings::default()

@@ -276,16 +276,19 @@ impl Runner {
             }
             SolverKind::Newton
             | SolverKind::NewtonTol
-            | SolverKind::NewtonPlain
-            | SolverKind::NewtonPlainTol => {
+            | SolverKind::NewtonRelaxed
+            | SolverKind::NewtonRelaxedTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
-                let plain = matches!(kind, SolverKind::NewtonPlain | SolverKind::NewtonPlainTol);
+                let relaxed = matches!(
+                    kind,
+                    SolverKind::NewtonRelaxed | SolverKind::NewtonRelaxedTol
+                );
                 let params = NewtonParams {
-                    relaxation: if plain {
-                        Relaxation::NONE
+                    relaxation: if relaxed {
+                        Relaxation::BUCKLING
                     } else {
-                        Relaxation::default()
+                        Relaxation::NONE
                     },
                     ..NewtonParams::default()
                 };

@@ -47,11 +47,11 @@ pub enum SolverKind {
     NewtonCg,
     /// `newton-cg-tol:T`: as `newton-cg`, until the relative gradient ≤ T (at most 500 iterations).
     NewtonCgTol,
-    /// `newton-plain:K`: as `newton`, without the nonlinear relaxation
-    /// ([`crate::solvers::Relaxation::NONE`]): the convex blend and the Armijo search alone.
-    NewtonPlain,
-    /// `newton-plain-tol:T`: as `newton-tol`, without the relaxation.
-    NewtonPlainTol,
+    /// `newton-relaxed:K`: as `newton`, with the opt-in nonlinear relaxation
+    /// ([`crate::solvers::Relaxation::BUCKLING`]) after every accepted step.
+    NewtonRelaxed,
+    /// `newton-relaxed-tol:T`: as `newton-tol`, with the relaxation.
+    NewtonRelaxedTol,
 }
 
 impl SolverKind {
@@ -72,8 +72,8 @@ impl SolverKind {
         SolverKind::Chebyshev,
         SolverKind::NewtonCg,
         SolverKind::NewtonCgTol,
-        SolverKind::NewtonPlain,
-        SolverKind::NewtonPlainTol,
+        SolverKind::NewtonRelaxed,
+        SolverKind::NewtonRelaxedTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -94,8 +94,8 @@ impl SolverKind {
             SolverKind::Chebyshev => "chebyshev",
             SolverKind::NewtonCg => "newton-cg",
             SolverKind::NewtonCgTol => "newton-cg-tol",
-            SolverKind::NewtonPlain => "newton-plain",
-            SolverKind::NewtonPlainTol => "newton-plain-tol",
+            SolverKind::NewtonRelaxed => "newton-relaxed",
+            SolverKind::NewtonRelaxedTol => "newton-relaxed-tol",
         }
     }
 
@@ -109,14 +109,14 @@ impl SolverKind {
             | SolverKind::Lbfgs
             | SolverKind::Chebyshev
             | SolverKind::NewtonCg
-            | SolverKind::NewtonPlain => Values::Iterations,
+            | SolverKind::NewtonRelaxed => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
             | SolverKind::JacobiTol
             | SolverKind::LbfgsTol
             | SolverKind::NewtonCgTol
-            | SolverKind::NewtonPlainTol => Values::Tolerances,
+            | SolverKind::NewtonRelaxedTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -140,8 +140,8 @@ impl SolverKind {
             SolverKind::Chebyshev => iterations(&[5, 10, 20, 50, 100]),
             SolverKind::NewtonCg => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonCgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
-            SolverKind::NewtonPlain => iterations(&[1, 2, 3, 5, 10]),
-            SolverKind::NewtonPlainTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonRelaxed => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonRelaxedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }

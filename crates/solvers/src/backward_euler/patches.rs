@@ -494,7 +494,7 @@ mod tests {
                 patch_share: share,
                 patch_covers: covers,
                 region_rings: rings,
-                ..Relaxation::default()
+                ..Relaxation::BUCKLING
             };
             let cover = step.build_cover(&relaxation);
             assert!(cover.is_for(&relaxation));
