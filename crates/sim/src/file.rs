@@ -154,6 +154,12 @@ struct Document {
     output: OutputSection,
 }
 
+/// The most vertices a scene file may ask a generator for: 2^24 (cloth n = 4096, beam r = 160),
+/// already tens of GB with springs and a solver's matrices. The file is input, and a size in it
+/// must not decide how much the process tries to allocate; programs that want more call
+/// [`generators`] directly.
+pub const MAX_GENERATED_VERTICES: usize = 1 << 24;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MeshSection {
@@ -432,12 +438,24 @@ impl Context<'_> {
                     "particles" => self.particles(m),
                     "cloth" => {
                         let n = m.n.ok_or_else(|| self.invalid("mesh.n", "missing: cloth needs n (vertices per side)"))?;
+                        if n.checked_mul(n).is_none_or(|v| v > MAX_GENERATED_VERTICES) {
+                            return Err(self.invalid(
+                                "mesh.n",
+                                format!("{n}: a scene file's cloth has at most {MAX_GENERATED_VERTICES} vertices (n ≤ 4096)"),
+                            ));
+                        }
                         generators::cloth(n, self.stiffness(m)?)
                             .map(AnyMesh::Three)
                             .map_err(|e| mesh_err("mesh", e))
                     }
                     "beam" => {
                         let r = m.r.ok_or_else(|| self.invalid("mesh.r", "missing: beam needs r (cubes across)"))?;
+                        if r > 160 {
+                            return Err(self.invalid(
+                                "mesh.r",
+                                format!("{r}: a scene file's beam has at most {MAX_GENERATED_VERTICES} vertices (r ≤ 160)"),
+                            ));
+                        }
                         let mesh = generators::beam(r).map_err(|e| mesh_err("mesh.r", e))?;
                         let k = self.stiffness(m)?;
                         mesh.map_stiffness(|_, _| k)
@@ -938,6 +956,36 @@ tolerance = 1e-9
         .unwrap();
         assert_eq!(newton.settings.newton.max_iterations, 9);
         assert_eq!(newton.settings.newton.tolerance, 1e-10);
+    }
+
+    /// A size in a file must not decide how much the process allocates: a cloth or beam above
+    /// MAX_GENERATED_VERTICES is refused before anything is built, naming the key.
+    #[test]
+    fn generated_meshes_are_bounded_by_the_file_limit() {
+        let mesh = |section: &str| {
+            let text = format!(
+                "[mesh]\n{section}\nstiffness = 100.0\n[integrator]\nmethod = \"pd\"\n\
+                 time_step = 0.01\n[run]\nsteps = 1\n"
+            );
+            parse_scene(&text, Path::new("big.toml")).map(|_| ())
+        };
+        for (section, key) in [
+            ("generator = \"cloth\"\nn = 4097", "mesh.n"),
+            ("generator = \"cloth\"\nn = 65535", "mesh.n"),
+            ("generator = \"cloth\"\nn = 18446744073709551615", "mesh.n"),
+            ("generator = \"beam\"\nr = 161", "mesh.r"),
+            ("generator = \"beam\"\nr = 18446744073709551615", "mesh.r"),
+        ] {
+            let err = mesh(section).unwrap_err().to_string();
+            assert!(
+                err.contains(key) && err.contains("at most"),
+                "{section}: {err}"
+            );
+        }
+        // The limits themselves are sizes a file may ask for (not built here: 2^24 vertices).
+        assert_eq!(4096 * 4096, MAX_GENERATED_VERTICES);
+        assert!(generators::beam_vertex_count(160) <= MAX_GENERATED_VERTICES);
+        assert!(generators::beam_vertex_count(161) > MAX_GENERATED_VERTICES);
     }
 
     #[test]
