@@ -59,7 +59,7 @@ pub(crate) struct RunArgs {
     scene: String,
     /// Time integrator: explicit-euler, symplectic-euler, linearized (linearised implicit Euler, β
     /// family), newton (backward Euler by Newton) or pd (backward Euler by projective dynamics).
-    /// Default: the scene's.
+    /// Default: the scene's. Fluid scenes: symplectic-euler or leapfrog.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// β of the linearized integrator, in [0, 1]: 0 explicit, 0.5 midpoint-like, 1 linearised

@@ -94,8 +94,8 @@ pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCli
     };
     let name = format!("bench N={count}");
     let fail = |what: &str, e| SphCliError::fluid(&name, what, e);
-    let mut fluid = Fluid::new(spec.build().map_err(|e| fail("setup", e))?)
-        .map_err(|e| fail("setup", e))?;
+    let mut fluid =
+        Fluid::new(spec.build().map_err(|e| fail("setup", e))?).map_err(|e| fail("setup", e))?;
     for _ in 0..2 {
         fluid.step().map_err(|e| fail("warm-up step", e))?;
     }
@@ -131,7 +131,14 @@ fn rayon_threads() -> usize {
 pub(crate) fn format_table(records: &[SphBenchRecord]) -> String {
     let mut s = format!(
         "{:>10} {:>9} {:>11} {:>14} {:>10} {:>10} {:>10} {:>10}\n",
-        "N", "walls", "ms/step", "particle-st/s", "search ms", "density ms", "forces ms", "update ms"
+        "N",
+        "walls",
+        "ms/step",
+        "particle-st/s",
+        "search ms",
+        "density ms",
+        "forces ms",
+        "update ms"
     );
     for r in records {
         s.push_str(&format!(
@@ -249,7 +256,11 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
     type Column = fn(&SphBenchRecord) -> f64;
     let series: [(&str, Column, RGBColor); 5] = [
         ("step", |r| r.ms_per_step, RGBColor(30, 32, 36)),
-        ("neighbour search", |r| r.neighbour_search_ms, RGBColor(31, 119, 180)),
+        (
+            "neighbour search",
+            |r| r.neighbour_search_ms,
+            RGBColor(31, 119, 180),
+        ),
         ("density", |r| r.density_ms, RGBColor(44, 160, 44)),
         ("forces", |r| r.forces_ms, RGBColor(214, 39, 40)),
         ("integration", |r| r.integration_ms, RGBColor(255, 127, 14)),
@@ -281,7 +292,10 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
             .y_label_area_size(if text { 70 } else { 5 });
         if text {
             builder.caption(
-                format!("2D WCSPH: time per step against particles ({} threads)", rayon_threads()),
+                format!(
+                    "2D WCSPH: time per step against particles ({} threads)",
+                    rayon_threads()
+                ),
                 (FONT, 20),
             );
         }
@@ -307,7 +321,10 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
                 .filter(|&(_, y)| positive(y))
                 .collect();
             let line = chart
-                .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    points.iter().copied(),
+                    color.stroke_width(2),
+                ))
                 .map_err(|e| e.to_string())?;
             if text {
                 line.label(name).legend(move |(x, y)| {

@@ -140,7 +140,10 @@ pub(crate) fn parse(text: &str, path: &Path) -> Result<AnyScene, SphCliError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
         } else {
-            Err(invalid(key, format!("{v} is out of range: must be > 0 ({unit})")))
+            Err(invalid(
+                key,
+                format!("{v} is out of range: must be > 0 ({unit})"),
+            ))
         }
     };
     let dx = positive("fluid.dx", f.dx, "m")?;
@@ -148,7 +151,9 @@ pub(crate) fn parse(text: &str, path: &Path) -> Result<AnyScene, SphCliError> {
     if dx > smallest / 2.0 {
         return Err(invalid(
             "fluid.dx",
-            format!("{dx} is out of range: must be at most half the tank's smallest side, {smallest} m"),
+            format!(
+                "{dx} is out of range: must be at most half the tank's smallest side, {smallest} m"
+            ),
         ));
     }
     let in_range = |key: &str, v: Option<f64>, lo: f64, hi: f64, open_lo: bool, default: f64| {
@@ -228,7 +233,10 @@ pub(crate) fn parse(text: &str, path: &Path) -> Result<AnyScene, SphCliError> {
     )?;
     let frames = doc.run.frames.unwrap_or(DEFAULT_FRAMES);
     if frames == 0 {
-        return Err(invalid("run.frames", "0 is out of range: must be >= 1".into()));
+        return Err(invalid(
+            "run.frames",
+            "0 is out of range: must be >= 1".into(),
+        ));
     }
     let layers = WALL_LAYERS.max((2.0 * h_factor - 1e-9).ceil() as usize);
     let column = Column {
@@ -291,8 +299,7 @@ impl Column<'_> {
         let tank_min = SVector::<f64, D>::zeros();
         let tank_max = SVector::<f64, D>::from_fn(|a, _| self.tank[a]);
         let column_max = SVector::<f64, D>::from_fn(|a, _| self.column[a]);
-        let walls: [[bool; 2]; D] =
-            std::array::from_fn(|a| [true, !(a == 1 && self.open_top)]);
+        let walls: [[bool; 2]; D] = std::array::from_fn(|a| [true, !(a == 1 && self.open_top)]);
         let spec = ColumnInTank {
             tank_min,
             tank_max,
@@ -373,7 +380,7 @@ mod tests {
             (format!("{SMALL}[run]\nduration = -1.0\n"), "run.duration"),
         ];
         for (text, key) in cases {
-            let err = parse_text(&text).err().expect(&text).to_string();
+            let err = parse_text(&text).expect_err(&text).to_string();
             assert!(err.contains(key), "{text}: {err}");
         }
     }

@@ -51,7 +51,7 @@ pub enum SphCliError {
         context: String,
         /// The fluid's error.
         #[source]
-        source: SphError,
+        source: Box<SphError>,
     },
     /// The scene file could not be read.
     #[error("{}: {source}", path.display())]
@@ -101,7 +101,7 @@ impl SphCliError {
         SphCliError::Fluid {
             scene: scene.to_string(),
             context: context.into(),
-            source,
+            source: Box::new(source),
         }
     }
 

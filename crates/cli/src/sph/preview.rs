@@ -1,7 +1,7 @@
 //! `preview.png` of a fluid run: the last frame's particles coloured by speed (dark blue at rest
 //! through green to yellow at the frame's largest speed, a colour bar at the right), the wall
 //! particles in grey and the tank's inside outlined (open where the top is open), y up. A 3D scene is seen from the side
-//! (looking along −z, x right, y up), nearer particles drawn last. Text uses the DejaVu Sans font
+//! (looking along −z, x right, y up), nearer particles drawn last, without the walls across z. Text uses the DejaVu Sans font
 //! embedded in the program. The PNG is written to a temporary file beside the target and renamed
 //! onto it when complete.
 
@@ -38,7 +38,11 @@ const STOPS: [[f64; 3]; 5] = [
 
 /// The colour of `f` in [0, 1] on the speed map (NaN gives the lowest colour).
 fn colour(f: f64) -> RGBColor {
-    let f = if f.is_finite() { f.clamp(0.0, 1.0) } else { 0.0 };
+    let f = if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let x = f * (STOPS.len() - 1) as f64;
     let i = (x.floor() as usize).min(STOPS.len() - 2);
     let t = x - i as f64;
@@ -111,6 +115,12 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
     let err = |e: DrawingAreaErrorKind<_>| e.to_string();
     area.fill(&BACKGROUND).map_err(err)?;
     let finite = |p: &&SVector<f64, D>| p[0].is_finite() && p[1].is_finite();
+    // In 3D the walls across z (behind and in front of the fluid) are left out, so that the
+    // fluid can be seen.
+    let shown = |p: &&SVector<f64, D>| {
+        finite(p)
+            && (D < 3 || (p[D - 1] >= input.tank_min[D - 1] && p[D - 1] <= input.tank_max[D - 1]))
+    };
     // The view: the tank and its walls.
     let (mut lo, mut hi) = (
         [input.tank_min[0], input.tank_min[1]],
@@ -122,7 +132,12 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
             hi[a] = hi[a].max(p[a]);
         }
     }
-    let (left, top, right, bottom) = (20.0, 60.0, f64::from(WIDTH) - 110.0, f64::from(HEIGHT) - 20.0);
+    let (left, top, right, bottom) = (
+        20.0,
+        60.0,
+        f64::from(WIDTH) - 110.0,
+        f64::from(HEIGHT) - 20.0,
+    );
     let span = [(hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9)];
     let scale = ((right - left) / span[0]).min((bottom - top) / span[1]);
     let x0 = left + 0.5 * ((right - left) - scale * span[0]);
@@ -136,7 +151,7 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
     // A particle's disc: the lattice spacing's worth, at least one pixel.
     let spacing = spacing_estimate(input.walls, input.positions);
     let radius = ((0.5 * spacing * scale).round() as i32).clamp(1, 12);
-    for p in input.walls.iter().filter(finite) {
+    for p in input.walls.iter().filter(shown) {
         area.draw(&Circle::new(map(p[0], p[1]), radius, WALL.filled()))
             .map_err(err)?;
     }
@@ -196,10 +211,18 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
             small.clone(),
         ))
         .map_err(err)?;
-        area.draw(&Text::new("0", (bx as i32 + 6, by1 as i32 + 6), small.clone()))
-            .map_err(err)?;
-        area.draw(&Text::new("speed, m/s", (bx as i32 - 20, by0 as i32 - 40), small))
-            .map_err(err)?;
+        area.draw(&Text::new(
+            "0",
+            (bx as i32 + 6, by1 as i32 + 6),
+            small.clone(),
+        ))
+        .map_err(err)?;
+        area.draw(&Text::new(
+            "speed, m/s",
+            (bx as i32 - 20, by0 as i32 - 40),
+            small,
+        ))
+        .map_err(err)?;
     }
     area.present().map_err(err)?;
     Ok(())

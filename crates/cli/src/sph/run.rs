@@ -252,7 +252,11 @@ fn run_scene<const D: usize>(
     let frames_dir = options.out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| SphCliError::io(&frames_dir, e))?;
     remove_stale_frames(&frames_dir)?;
-    write_particles(&options.out.join("walls.vtk"), fluid.boundary_positions(), None)?;
+    write_particles(
+        &options.out.join("walls.vtk"),
+        fluid.boundary_positions(),
+        None,
+    )?;
 
     let params = *fluid.params();
     let gravity = -params.gravity[1];
@@ -278,9 +282,7 @@ fn run_scene<const D: usize>(
         frames: Vec::with_capacity(frames.saturating_add(1).min(1 << 12)),
     };
     let dam_break = scene.dam_break;
-    let record = |frame: usize,
-                  fluid: &mut Fluid<D>,
-                  report: Option<hooke_sph::AdvanceReport>| {
+    let record = |frame: usize, fluid: &mut Fluid<D>, report: Option<hooke_sph::AdvanceReport>| {
         fluid.refresh();
         let front_x = if dam_break { fluid.front(0, 3) } else { None };
         let time = fluid.time();
