@@ -59,7 +59,7 @@ pub(crate) struct RunArgs {
     scene: String,
     /// Time integrator: explicit-euler, symplectic-euler, linearized (linearised implicit Euler, β
     /// family), newton (backward Euler by Newton) or pd (backward Euler by projective dynamics).
-    /// Default: the scene's.
+    /// Default: the scene's. Fluid scenes: symplectic-euler or leapfrog.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// β of the linearized integrator, in [0, 1]: 0 explicit, 0.5 midpoint-like, 1 linearised
@@ -79,10 +79,18 @@ pub(crate) struct RunArgs {
     /// 0: run all iterations).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     tolerance: Option<f64>,
-    /// Number of frames to run (default: the scene's).
+    /// Number of frames to run (default: the scene's; fluid scenes: 50 to t = 1 s for the dam
+    /// breaks, 40 to 2 s for hydrostatic-2d).
     #[arg(long)]
     steps: Option<usize>,
-    /// Frame time step in seconds (default: the scene's).
+    /// Fluid scenes only: the lattice spacing Δx in metres (default: SCENES.md's, 0.02 in 2D and
+    /// 0.04 in 3D, or the scene file's dx).
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    dx: Option<f64>,
+    /// Frame time step in seconds (default: the scene's; fluid scenes: the simulated time between
+    /// frames, 0.02 s for the dam breaks and 0.05 s for hydrostatic-2d, the fluid taking its own
+    /// stable steps in between).
     #[arg(long, allow_negative_numbers = true)]
     dt: Option<f64>,
     /// Substeps per frame for explicit integrators (default: from the stability bound).
@@ -122,7 +130,7 @@ pub(crate) struct RunArgs {
     /// (no other argument but --quiet may be given): its frames and summary.json are then those of
     /// a run that was never stopped.
     #[arg(long, value_name = "DIR", conflicts_with_all = [
-        "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "steps", "dt",
+        "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "steps", "dx", "dt",
         "substeps", "force", "energy_limit", "pin_method", "out", "format", "checkpoint_every",
     ])]
     #[serde(skip)]
@@ -151,6 +159,7 @@ impl RunArgs {
             iterations: self.iterations,
             tolerance: self.tolerance,
             steps: self.steps,
+            dx: self.dx,
             dt: self.dt,
             substeps: self.substeps,
             force: self.force,
@@ -203,6 +212,8 @@ enum CliError {
     Checkpoint(#[from] CheckpointError),
     #[error("stopped after frame {0} (--stop-after)")]
     Stopped(usize),
+    #[error(transparent)]
+    Sph(#[from] crate::sph::SphCliError),
 }
 
 /// Parses the command line, runs the command and reports any error on standard error.
@@ -213,9 +224,16 @@ pub fn main() -> ExitCode {
             for (name, description) in scenes::builtin_scenes() {
                 println!("{name:<18} {description}");
             }
+            for (name, description) in crate::sph::builtin_scenes() {
+                println!("{name:<18} {description}");
+            }
             Ok(())
         }
         Some(Command::Run(args)) => run(&args),
+        Some(Command::Bench(args)) if args.sph.is_some() => {
+            crate::sph::bench::run(&crate::sph::bench::SphBenchOptions::from_args(&args))
+                .map_err(CliError::from)
+        }
         Some(Command::Bench(args)) => crate::bench::run_command(&args).map_err(CliError::from),
         Some(Command::Edit(args)) => crate::edit_command::run(&args).map_err(CliError::from),
         Some(Command::Mesh(args)) => crate::mesh_command::run(&args).map_err(CliError::from),
@@ -256,6 +274,15 @@ fn run(args: &RunArgs) -> Result<(), CliError> {
     };
     let args = resumed_args.as_ref().unwrap_or(args);
     let path = Path::new(&args.scene);
+    if crate::sph::is_builtin(&args.scene) || (path.is_file() && crate::sph::is_fluid_file(path)) {
+        return run_fluid(args);
+    }
+    if args.dx.is_some() {
+        return Err(CliError::Argument {
+            name: "dx",
+            reason: "is for fluid scenes (see `hooke scenes`) only".into(),
+        });
+    }
     let (setup, file_format) = if path.extension().is_some_and(|e| e == "toml") || path.is_file() {
         let file = load_scene(path)?;
         (file.setup, file.format)
@@ -603,6 +630,42 @@ fn run_setup<const D: usize>(
         steps + 1
     );
     Ok(())
+}
+
+/// `hooke run` of a fluid scene: the spring integrators' options are refused.
+fn run_fluid(args: &RunArgs) -> Result<(), CliError> {
+    let not_for_fluid = [
+        ("beta", args.beta.is_some()),
+        ("linear-solver", args.linear_solver.is_some()),
+        ("iterations", args.iterations.is_some()),
+        ("tolerance", args.tolerance.is_some()),
+        ("substeps", args.substeps.is_some()),
+        ("force", args.force),
+        ("energy-limit", args.energy_limit.is_some()),
+        ("pin-method", args.pin_method.is_some()),
+        ("checkpoint-every", args.checkpoint_every.is_some()),
+        ("resume", args.resume.is_some()),
+        ("stop-after", args.stop_after.is_some()),
+        ("format", matches!(args.format, Some(Format::Obj))),
+    ];
+    if let Some((name, _)) = not_for_fluid.iter().find(|(_, given)| *given) {
+        let reason = if *name == "format" {
+            "fluid scenes always write VTK frames".to_string()
+        } else {
+            format!("is not an option of fluid scenes such as {}", args.scene)
+        };
+        return Err(CliError::Argument { name, reason });
+    }
+    crate::sph::run::run(&crate::sph::run::FluidRunOptions {
+        scene: &args.scene,
+        dx: args.dx,
+        frames: args.steps,
+        frame_interval: args.dt,
+        integrator: args.integrator.as_deref(),
+        out: &args.out,
+        quiet: args.quiet,
+    })
+    .map_err(CliError::from)
 }
 
 /// Remove frame files of an earlier run (those after frame `keep_through`, when a run resumes

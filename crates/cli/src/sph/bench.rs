@@ -1,0 +1,377 @@
+//! `hooke bench --sph COUNTS`: the cost of a 2D WCSPH step against particle count, split by phase.
+//!
+//! The set-up is hooke-sph's `examples/step_cost.rs`: for each count N, a square column of
+//! about N particles (side 1 m, Δx = 1/round(√N)) in the corner of a 2 m × 1.5 m tank with open top
+//! and three layers of wall particles, SCENES.md's parameters otherwise (h = 1.3 Δx, c₀ = 10·√(2gH),
+//! α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up, then `--repeats`
+//! steps are timed: wall time per step, fluid particle-steps per second, and the fluid's own phase
+//! timings per step (neighbour search, density, forces, integration).
+
+use std::path::Path;
+use std::time::Instant;
+
+use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
+use hooke_sph::{Fluid, FluidParams};
+use nalgebra::SVector;
+use plotters::coord::combinators::IntoLogRange;
+use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::SphCliError;
+use crate::output::OutputError;
+
+/// Fewest and most particles a count may ask for.
+const COUNT_RANGE: (f64, f64) = (16.0, 1e8);
+
+/// One count's measurement; also the keys of `--json`'s records.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SphBenchRecord {
+    /// The count asked for.
+    pub requested: usize,
+    /// Fluid particles (the nearest square of the count).
+    pub fluid_particles: usize,
+    /// Wall particles.
+    pub boundary_particles: usize,
+    /// Timed steps.
+    pub steps: u32,
+    /// Threads of the rayon pool.
+    pub threads: usize,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Fluid particles × steps per second of wall time.
+    pub particle_steps_per_s: f64,
+    /// Neighbour search (sorting by cell, gathering) per step (ms).
+    pub neighbour_search_ms: f64,
+    /// Density (summation) and equation of state per step (ms).
+    pub density_ms: f64,
+    /// Pressure, viscosity and gravity forces per step (ms).
+    pub forces_ms: f64,
+    /// Step size, checks and updates per step (ms).
+    pub integration_ms: f64,
+}
+
+/// Parses `--sph`'s counts: comma separated, each a number such as `2000` or `1e5` (a leading
+/// `N=` is allowed).
+pub(crate) fn parse_counts(text: &str) -> Result<Vec<usize>, SphCliError> {
+    let bad = |reason: String| SphCliError::Argument {
+        name: "sph",
+        reason,
+    };
+    let body = text.trim().strip_prefix("N=").unwrap_or(text.trim());
+    let mut counts = Vec::new();
+    for part in body.split(',') {
+        let part = part.trim();
+        let value: f64 = part.parse().map_err(|_| {
+            bad(format!(
+                "{part:?} is not a number: expected particle counts such as 1e4,1e5"
+            ))
+        })?;
+        if !(value.is_finite() && value >= COUNT_RANGE.0 && value <= COUNT_RANGE.1) {
+            return Err(bad(format!(
+                "{part} is out of range: each count must be in [{}, {:e}]",
+                COUNT_RANGE.0, COUNT_RANGE.1
+            )));
+        }
+        counts.push(value.round() as usize);
+    }
+    Ok(counts)
+}
+
+/// Measures one count (see the [module](self)).
+pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCliError> {
+    let side = (count as f64).sqrt().round().max(2.0);
+    let spec = ColumnInTank::<2> {
+        tank_min: SVector::zeros(),
+        tank_max: SVector::<f64, 2>::new(2.0, 1.5),
+        walls: [[true, true], [true, false]],
+        column_max: SVector::<f64, 2>::new(1.0, 1.0),
+        dx: 1.0 / side,
+        layers: WALL_LAYERS,
+        params: FluidParams {
+            sound_speed: 0.0,
+            ..FluidParams::default()
+        },
+    };
+    let name = format!("bench N={count}");
+    let fail = |what: &str, e| SphCliError::fluid(&name, what, e);
+    let mut fluid =
+        Fluid::new(spec.build().map_err(|e| fail("setup", e))?).map_err(|e| fail("setup", e))?;
+    for _ in 0..2 {
+        fluid.step().map_err(|e| fail("warm-up step", e))?;
+    }
+    fluid.reset_timings();
+    let start = Instant::now();
+    for _ in 0..steps {
+        fluid.step().map_err(|e| fail("timed step", e))?;
+    }
+    let per = start.elapsed().as_secs_f64() / f64::from(steps);
+    let t = fluid.timings();
+    let ms = |d: std::time::Duration| 1e3 * d.as_secs_f64() / f64::from(steps);
+    Ok(SphBenchRecord {
+        requested: count,
+        fluid_particles: fluid.fluid_count(),
+        boundary_particles: fluid.boundary_count(),
+        steps,
+        threads: rayon_threads(),
+        ms_per_step: 1e3 * per,
+        particle_steps_per_s: fluid.fluid_count() as f64 / per,
+        neighbour_search_ms: ms(t.neighbour_search),
+        density_ms: ms(t.density),
+        forces_ms: ms(t.forces),
+        integration_ms: ms(t.integration),
+    })
+}
+
+/// The threads the fluid's parallel loops use (rayon's global pool).
+fn rayon_threads() -> usize {
+    rayon::current_num_threads()
+}
+
+/// The table `hooke bench --sph` prints.
+pub(crate) fn format_table(records: &[SphBenchRecord]) -> String {
+    let mut s = format!(
+        "{:>10} {:>9} {:>11} {:>14} {:>10} {:>10} {:>10} {:>10}\n",
+        "N",
+        "walls",
+        "ms/step",
+        "particle-st/s",
+        "search ms",
+        "density ms",
+        "forces ms",
+        "update ms"
+    );
+    for r in records {
+        s.push_str(&format!(
+            "{:>10} {:>9} {:>11.3} {:>14.4e} {:>10.3} {:>10.3} {:>10.3} {:>10.3}\n",
+            r.fluid_particles,
+            r.boundary_particles,
+            r.ms_per_step,
+            r.particle_steps_per_s,
+            r.neighbour_search_ms,
+            r.density_ms,
+            r.forces_ms,
+            r.integration_ms
+        ));
+    }
+    s
+}
+
+/// What `hooke bench --sph` asks for.
+pub(crate) struct SphBenchOptions<'a> {
+    /// `--sph`'s text.
+    pub counts: &'a str,
+    /// `--repeats`: timed steps per count.
+    pub steps: usize,
+    /// `--json FILE`.
+    pub json: Option<&'a Path>,
+    /// `--plot FILE.png`.
+    pub plot: Option<&'a Path>,
+    /// `--quiet`.
+    pub quiet: bool,
+}
+
+impl<'a> SphBenchOptions<'a> {
+    /// The options of `hooke bench --sph` (the counts are empty without `--sph`).
+    pub(crate) fn from_args(args: &'a crate::bench::BenchArgs) -> Self {
+        SphBenchOptions {
+            counts: args.sph.as_deref().unwrap_or(""),
+            steps: args.repeats,
+            json: args.json.as_deref(),
+            plot: args.plot.as_deref(),
+            quiet: args.quiet,
+        }
+    }
+}
+
+/// Runs `hooke bench --sph`: measures every count, prints the table, writes the files asked for.
+pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
+    let counts = parse_counts(options.counts)?;
+    let steps = u32::try_from(options.steps)
+        .ok()
+        .filter(|&s| s >= 1)
+        .ok_or_else(|| SphCliError::Argument {
+            name: "repeats",
+            reason: "with --sph: the timed steps per count, at least 1".into(),
+        })?;
+    let begin = Instant::now();
+    let mut records = Vec::new();
+    for count in counts {
+        if !options.quiet {
+            eprintln!(
+                "[{:7.1} s] sph N={count}: {steps} timed steps",
+                begin.elapsed().as_secs_f64()
+            );
+        }
+        records.push(measure(count, steps)?);
+    }
+    println!(
+        "2D WCSPH step cost (column in a tank, SCENES.md's parameters), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+        rayon_threads()
+    );
+    print!("{}", format_table(&records));
+    if let Some(path) = options.json {
+        create_parent(path)?;
+        crate::output::write_json_atomically(path, &records, true)?;
+    }
+    if let Some(path) = options.plot {
+        create_parent(path)?;
+        plot(path, &records)?;
+    }
+    Ok(())
+}
+
+fn create_parent(path: &Path) -> Result<(), SphCliError> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).map_err(|e| SphCliError::io(dir, e))
+        }
+        _ => Ok(()),
+    }
+}
+
+const FONT: &str = "sans-serif";
+
+fn plot_error(path: &Path, e: impl std::fmt::Display) -> SphCliError {
+    SphCliError::Output(OutputError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Time per step and per phase against fluid particles, on log axes, as a PNG written
+/// atomically.
+fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
+    // Registers the embedded font (shared with the preview).
+    let text = super::preview::font_ready();
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(".sph-bench-")
+        .suffix(".png")
+        .tempfile_in(dir)
+        .map_err(|e| SphCliError::io(dir, e))?
+        .into_temp_path();
+    type Column = fn(&SphBenchRecord) -> f64;
+    let series: [(&str, Column, RGBColor); 5] = [
+        ("step", |r| r.ms_per_step, RGBColor(30, 32, 36)),
+        (
+            "neighbour search",
+            |r| r.neighbour_search_ms,
+            RGBColor(31, 119, 180),
+        ),
+        ("density", |r| r.density_ms, RGBColor(44, 160, 44)),
+        ("forces", |r| r.forces_ms, RGBColor(214, 39, 40)),
+        ("integration", |r| r.integration_ms, RGBColor(255, 127, 14)),
+    ];
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    let xs: Vec<f64> = records.iter().map(|r| r.fluid_particles as f64).collect();
+    let ys: Vec<f64> = records
+        .iter()
+        .flat_map(|r| series.iter().map(move |(_, f, _)| f(r)))
+        .filter(|&v| positive(v))
+        .collect();
+    let range = |values: &[f64]| {
+        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = values.iter().copied().fold(0.0, f64::max);
+        if !(lo.is_finite() && hi > 0.0) {
+            return 1e-3..1.0;
+        }
+        let lo = 10f64.powf(lo.log10().floor());
+        let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
+        lo..hi.max(lo * 10.0)
+    };
+    let draw = || -> Result<(), String> {
+        let area = BitMapBackend::new(&tmp, (900, 600)).into_drawing_area();
+        area.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut builder = ChartBuilder::on(&area);
+        builder
+            .margin(12)
+            .x_label_area_size(if text { 45 } else { 5 })
+            .y_label_area_size(if text { 70 } else { 5 });
+        if text {
+            builder.caption(
+                format!(
+                    "2D WCSPH: time per step against particles ({} threads)",
+                    rayon_threads()
+                ),
+                (FONT, 20),
+            );
+        }
+        let mut chart = builder
+            .build_cartesian_2d(range(&xs).log_scale(), range(&ys).log_scale())
+            .map_err(|e| e.to_string())?;
+        let mut mesh = chart.configure_mesh();
+        if text {
+            mesh.x_desc("fluid particles")
+                .y_desc("wall time per step (ms)")
+                .label_style((FONT, 13))
+                .axis_desc_style((FONT, 15))
+                .x_label_formatter(&|v| format!("{v:.0e}"))
+                .y_label_formatter(&|v| format!("{v:.0e}"));
+        } else {
+            mesh.disable_x_mesh().disable_y_mesh();
+        }
+        mesh.draw().map_err(|e| e.to_string())?;
+        for (name, column, color) in series {
+            let points: Vec<(f64, f64)> = records
+                .iter()
+                .map(|r| (r.fluid_particles as f64, column(r)))
+                .filter(|&(_, y)| positive(y))
+                .collect();
+            let line = chart
+                .draw_series(LineSeries::new(
+                    points.iter().copied(),
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+            if text {
+                line.label(name).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                });
+            }
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        if text {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .label_font((FONT, 13))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+        area.present().map_err(|e| e.to_string())
+    };
+    draw().map_err(|e| plot_error(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| SphCliError::io(path, e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_parse() {
+        assert_eq!(parse_counts("1e4,1e5").unwrap(), vec![10_000, 100_000]);
+        assert_eq!(parse_counts("N=2000").unwrap(), vec![2000]);
+        for bad in ["", "abc", "1e9", "5", "1e4,-3", "nan"] {
+            let e = parse_counts(bad).unwrap_err().to_string();
+            assert!(e.contains("--sph"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_small_count_measures() {
+        let r = measure(400, 1).unwrap();
+        assert_eq!(r.fluid_particles, 400);
+        assert!(r.ms_per_step > 0.0 && r.particle_steps_per_s > 0.0);
+        assert!(format_table(&[r]).lines().count() == 2);
+    }
+}
