@@ -52,9 +52,8 @@ fn factor<I: Index, T: faer::traits::RealField + Copy>(
     )
     .expect("symbolic");
     let mut values = vec![T::zero_impl(); symbolic.len_val()];
-    let mut scratch = MemBuffer::new(
-        symbolic.factorize_numeric_llt_scratch::<T>(Par::Seq, Default::default()),
-    );
+    let mut scratch =
+        MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<T>(Par::Seq, Default::default()));
     symbolic
         .factorize_numeric_llt::<T>(
             &mut values,
@@ -146,8 +145,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     ];
     // Two columns on one thread, one on the other, each with its own scratch.
-    let mut scratch_a = MemBuffer::new(f64_usize.symbolic.solve_in_place_scratch::<f64>(2, Par::Seq));
-    let mut scratch_b = MemBuffer::new(f64_usize.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+    let mut scratch_a = MemBuffer::new(
+        f64_usize
+            .symbolic
+            .solve_in_place_scratch::<f64>(2, Par::Seq),
+    );
+    let mut scratch_b = MemBuffer::new(
+        f64_usize
+            .symbolic
+            .solve_in_place_scratch::<f64>(1, Par::Seq),
+    );
     let mut rhs = b64.clone();
     let split = median(
         (0..repeats)
@@ -178,7 +185,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Accuracy of the f32 solve, and of one f64 refinement step with it.
     let mut exact = b64.clone();
-    let mut scratch = MemBuffer::new(f64_usize.symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
+    let mut scratch = MemBuffer::new(
+        f64_usize
+            .symbolic
+            .solve_in_place_scratch::<f64>(3, Par::Seq),
+    );
     solve(&f64_usize, exact.as_mut(), Par::Seq, &mut scratch);
     let mut x32 = b32.clone();
     let mut scratch32 = MemBuffer::new(f32_u32.symbolic.solve_in_place_scratch::<f32>(3, Par::Seq));

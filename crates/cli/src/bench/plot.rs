@@ -239,3 +239,82 @@ pub fn plot_sweep(path: &Path, rows: &[SweepRow], title: &str) -> Result<(), Ben
         )
     })
 }
+
+/// The dam-break front Z = x_front/L against T = t·√(2g/L) on linear axes: one line per named
+/// series (a run at one spacing), and `experiment`'s points as black crosses.
+///
+/// # Errors
+/// [`BenchError::Output`] naming the file.
+pub fn plot_fronts(
+    path: &Path,
+    runs: &[(String, Vec<(f64, f64)>)],
+    experiment: &[(f64, f64)],
+    title: &str,
+) -> Result<(), BenchError> {
+    let all = || {
+        runs.iter()
+            .flat_map(|(_, p)| p.iter())
+            .chain(experiment)
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+    };
+    let t_max = all().map(|p| p.0).fold(0.0, f64::max).max(1.0);
+    let z_max = all().map(|p| p.1).fold(0.0, f64::max).max(1.0);
+    write_png(path, (900, 600), |area| {
+        let text = font_ready();
+        let mut builder = ChartBuilder::on(area);
+        builder
+            .margin(12)
+            .x_label_area_size(if text { 45 } else { 5 })
+            .y_label_area_size(if text { 55 } else { 5 });
+        if text {
+            builder.caption(title, (FONT, 20));
+        }
+        let mut c = builder
+            .build_cartesian_2d(0.0..t_max * 1.02, 0.9..z_max * 1.05)
+            .map_err(|e| e.to_string())?;
+        let mut mesh = c.configure_mesh();
+        if text {
+            mesh.x_desc("T = t √(2g/L)")
+                .y_desc("Z = x_front / L")
+                .label_style((FONT, 13))
+                .axis_desc_style((FONT, 15));
+        } else {
+            mesh.disable_x_mesh().disable_y_mesh();
+        }
+        mesh.draw().map_err(|e| e.to_string())?;
+        for (k, (name, points)) in runs.iter().enumerate() {
+            let color = PALETTE[k % PALETTE.len()];
+            let line = c
+                .draw_series(LineSeries::new(
+                    points.iter().copied().filter(|p| p.1.is_finite()),
+                    color.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+            if text {
+                line.label(name.clone()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                });
+            }
+        }
+        let crosses = c
+            .draw_series(
+                experiment
+                    .iter()
+                    .map(|&p| Cross::new(p, 5, BLACK.stroke_width(2))),
+            )
+            .map_err(|e| e.to_string())?;
+        if text {
+            crosses
+                .label("experiment (Koshizuka & Oka 1996)")
+                .legend(|(x, y)| Cross::new((x + 9, y), 5, BLACK.stroke_width(2)));
+            c.configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .label_font((FONT, 13))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.4))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    })
+}
