@@ -104,4 +104,21 @@ pub enum StuffingError {
         /// The spacing used (m).
         spacing: f64,
     },
+    /// A tetrahedron outside the dihedral-angle bounds ([`MIN_DIHEDRAL_BOUND_DEG`](super::MIN_DIHEDRAL_BOUND_DEG),
+    /// [`MAX_DIHEDRAL_BOUND_DEG`](super::MAX_DIHEDRAL_BOUND_DEG)) that extra warping could not
+    /// remove: the mesher refuses rather than return it.
+    #[error(
+        "a tetrahedron near ({:.6e}, {:.6e}, {:.6e}) has dihedral angles from {min_deg:.2}° to {max_deg:.2}°, outside the bounds, at spacing {spacing} m; try a slightly different spacing",
+        point[0], point[1], point[2]
+    )]
+    AngleBound {
+        /// Its centroid (m).
+        point: [f64; 3],
+        /// Its smallest dihedral angle (°).
+        min_deg: f64,
+        /// Its largest dihedral angle (°).
+        max_deg: f64,
+        /// The spacing used (m).
+        spacing: f64,
+    },
 }
