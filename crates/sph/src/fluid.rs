@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 use nalgebra::SVector;
 use rayon::prelude::*;
 
+use crate::kernel::Profile;
 use crate::{
     DensityMethod, FluidParams, FluidSetup, Integrator, Kernel, NeighbourGrid, SphError, Walls,
 };
@@ -61,6 +62,8 @@ struct Sorted<const D: usize> {
     velocities: Vec<SVector<f64, D>>,
     densities: Vec<f64>,
     pressures: Vec<f64>,
+    /// pᵢ/ρᵢ², the pressure force's per-particle term.
+    pressure_terms: Vec<f64>,
     accelerations: Vec<SVector<f64, D>>,
     density_rates: Vec<f64>,
     /// Particle index → sorted slot.
@@ -673,26 +676,11 @@ impl<const D: usize> Fluid<D> {
             .zip(order.par_iter())
             .for_each(|(v, &i)| *v = velocities[i as usize] + accelerations[i as usize] * kick);
         let (sx, sv) = (&s.positions, &s.velocities);
-        s.density_rates
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(k, rate)| {
-                let xi = sx[k];
-                let vi = sv[k];
-                let mut d = 0.0;
-                grid.for_each_candidate_run(&xi, |run| {
-                    for j in run {
-                        let rij = xi - sx[j];
-                        let r2 = rij.norm_squared();
-                        if r2 >= support2 || j == k {
-                            continue;
-                        }
-                        let vij = vi - sv[j];
-                        d += m * kernel.derivative_over_r(r2.sqrt()) * vij.dot(&rij);
-                    }
-                });
-                *rate = d;
-            });
+        match (kernel.cubic_profile(), kernel.wendland_profile()) {
+            (Some(k), _) => continuity_loop(k, grid, sx, sv, support2, m, &mut s.density_rates),
+            (_, Some(k)) => continuity_loop(k, grid, sx, sv, support2, m, &mut s.density_rates),
+            _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
+        }
         let rank = &s.rank;
         self.density_rates
             .par_iter_mut()
@@ -713,6 +701,7 @@ impl<const D: usize> Fluid<D> {
         s.velocities.resize(n, SVector::zeros());
         s.densities.resize(n, 0.0);
         s.pressures.resize(n, 0.0);
+        s.pressure_terms.resize(n, 0.0);
         s.accelerations.resize(n, SVector::zeros());
         s.density_rates.resize(n, 0.0);
         s.rank.resize(n, 0);
@@ -741,65 +730,43 @@ impl<const D: usize> Fluid<D> {
         let m = self.mass;
         let summation = params.density == DensityMethod::Summation;
         if summation {
-            let sp = &s.positions;
-            s.densities.par_iter_mut().enumerate().for_each(|(k, rho)| {
-                let x = sp[k];
-                let mut sum = 0.0;
-                grid.for_each_candidate_run(&x, |run| {
-                    for y in &sp[run] {
-                        let r2 = (x - y).norm_squared();
-                        if r2 < support2 {
-                            sum += kernel.value(r2.sqrt());
-                        }
-                    }
-                });
-                *rho = m * sum;
-            });
+            let sx = &s.positions;
+            let out = &mut s.densities;
+            match (kernel.cubic_profile(), kernel.wendland_profile()) {
+                (Some(k), _) => summation_loop(k, grid, sx, support2, m, out),
+                (_, Some(k)) => summation_loop(k, grid, sx, support2, m, out),
+                _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
+            }
         }
         let b = params.tait_stiffness();
         s.pressures
             .par_iter_mut()
+            .zip(s.pressure_terms.par_iter_mut())
             .zip(s.densities.par_iter())
             .zip(order.par_iter())
-            .for_each(|((p, &r), &i)| *p = Self::pressure(&params, b, r, summation || i >= nf));
+            .for_each(|(((p, term), &r), &i)| {
+                *p = Self::pressure(&params, b, r, summation || i >= nf);
+                *term = *p / (r * r);
+            });
         let t2 = Instant::now();
 
         let h = params.smoothing_length;
-        let eta2 = 0.01 * h * h;
-        let alpha_c = params.viscosity_alpha * params.sound_speed;
-        let g = params.gravity;
-        let (sx, sv, sr, sp) = (&s.positions, &s.velocities, &s.densities, &s.pressures);
-        s.accelerations
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(k, acc)| {
-                if order[k] >= nf {
-                    *acc = SVector::zeros();
-                    return;
-                }
-                let (xi, vi, ri) = (sx[k], sv[k], sr[k]);
-                let pi = sp[k] / (ri * ri);
-                let mut a = SVector::<f64, D>::zeros();
-                grid.for_each_candidate_run(&xi, |run| {
-                    for j in run {
-                        let rij = xi - sx[j];
-                        let r2 = rij.norm_squared();
-                        if r2 >= support2 || j == k {
-                            continue;
-                        }
-                        let grad = rij * kernel.derivative_over_r(r2.sqrt());
-                        let rj = sr[j];
-                        let mut coefficient = pi + sp[j] / (rj * rj);
-                        let approach = (vi - sv[j]).dot(&rij);
-                        if approach < 0.0 {
-                            let mu = h * approach / (r2 + eta2);
-                            coefficient -= alpha_c * mu / (0.5 * (ri + rj));
-                        }
-                        a -= grad * (m * coefficient);
-                    }
-                });
-                *acc = a + g;
-            });
+        let constants = ForceConstants {
+            support2,
+            m,
+            h,
+            eta2: 0.01 * h * h,
+            alpha_c: params.viscosity_alpha * params.sound_speed,
+            g: params.gravity,
+            fluid_count: nf,
+        };
+        let (sx, sv, sr, st) = (&s.positions, &s.velocities, &s.densities, &s.pressure_terms);
+        let out = &mut s.accelerations;
+        match (kernel.cubic_profile(), kernel.wendland_profile()) {
+            (Some(k), _) => force_loop(k, grid, &constants, sx, sv, sr, st, out),
+            (_, Some(k)) => force_loop(k, grid, &constants, sx, sv, sr, st, out),
+            _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
+        }
         let t3 = Instant::now();
 
         let rank = &s.rank;
@@ -823,4 +790,141 @@ impl<const D: usize> Fluid<D> {
         self.timings.forces += t3 - t2;
         self.timings.evaluations += 1;
     }
+}
+
+/// A neighbour loop's scratch, one per rayon job: the neighbours of the particle at hand as
+/// (sorted slot, squared distance), in grid order.
+type Neighbours = Vec<(u32, f64)>;
+
+/// Fills `out` with the sorted slots j ≠ `skip` with |`x` − xⱼ|² < `support2`, in grid order (so the
+/// sums over them run in the same order whatever the threads), and returns how many there are.
+/// Every candidate is written and the count advanced by whether it is inside: no branch per
+/// candidate, whose outcome (about a third are inside) would be mispredicted.
+#[inline(always)]
+fn collect_neighbours<const D: usize>(
+    grid: &NeighbourGrid<D>,
+    sx: &[SVector<f64, D>],
+    x: &SVector<f64, D>,
+    skip: usize,
+    support2: f64,
+    out: &mut Neighbours,
+) -> usize {
+    let mut count = 0;
+    grid.for_each_candidate_run(x, |run| {
+        let needed = count + run.len();
+        if out.len() < needed {
+            out.resize(needed, (0, 0.0));
+        }
+        let start = run.start;
+        for (offset, y) in sx[run].iter().enumerate() {
+            let j = start + offset;
+            let r2 = (x - y).norm_squared();
+            out[count] = (j as u32, r2);
+            count += usize::from(r2 < support2 && j != skip);
+        }
+    });
+    count
+}
+
+/// ρ = m Σⱼ W(rᵢⱼ) over every particle within the support, itself included, for every sorted slot.
+fn summation_loop<K: Profile, const D: usize>(
+    kernel: K,
+    grid: &NeighbourGrid<D>,
+    sx: &[SVector<f64, D>],
+    support2: f64,
+    m: f64,
+    out: &mut [f64],
+) {
+    out.par_iter_mut()
+        .enumerate()
+        .for_each_init(Neighbours::new, |nb, (k, rho)| {
+            let count = collect_neighbours(grid, sx, &sx[k], usize::MAX, support2, nb);
+            let mut sum = 0.0;
+            for &(_, r2) in &nb[..count] {
+                sum += kernel.value(r2.sqrt());
+            }
+            *rho = m * sum;
+        });
+}
+
+/// dρᵢ/dt = Σⱼ m (vᵢ − vⱼ)·∇ᵢWᵢⱼ for every sorted slot.
+fn continuity_loop<K: Profile, const D: usize>(
+    kernel: K,
+    grid: &NeighbourGrid<D>,
+    sx: &[SVector<f64, D>],
+    sv: &[SVector<f64, D>],
+    support2: f64,
+    m: f64,
+    out: &mut [f64],
+) {
+    out.par_iter_mut()
+        .enumerate()
+        .for_each_init(Neighbours::new, |nb, (k, rate)| {
+            let (xi, vi) = (sx[k], sv[k]);
+            let count = collect_neighbours(grid, sx, &xi, k, support2, nb);
+            let mut d = 0.0;
+            for &(j, r2) in &nb[..count] {
+                let j = j as usize;
+                let rij = xi - sx[j];
+                let vij = vi - sv[j];
+                d += m * kernel.derivative_over_r(r2.sqrt()) * vij.dot(&rij);
+            }
+            *rate = d;
+        });
+}
+
+/// What the force loop needs besides the particle data.
+struct ForceConstants<const D: usize> {
+    support2: f64,
+    m: f64,
+    h: f64,
+    /// η² = 0.01 h², the viscosity's regulariser.
+    eta2: f64,
+    /// α c₀.
+    alpha_c: f64,
+    g: SVector<f64, D>,
+    fluid_count: u32,
+}
+
+/// The acceleration of every sorted slot holding a fluid particle (zero for boundary particles):
+/// −Σⱼ m (pᵢ/ρᵢ² + pⱼ/ρⱼ² + Πᵢⱼ) ∇ᵢWᵢⱼ + g.
+#[allow(clippy::too_many_arguments)]
+fn force_loop<K: Profile, const D: usize>(
+    kernel: K,
+    grid: &NeighbourGrid<D>,
+    c: &ForceConstants<D>,
+    sx: &[SVector<f64, D>],
+    sv: &[SVector<f64, D>],
+    sr: &[f64],
+    pressure_terms: &[f64],
+    out: &mut [SVector<f64, D>],
+) {
+    let order = grid.order();
+    let (m, h, eta2, alpha_c) = (c.m, c.h, c.eta2, c.alpha_c);
+    out.par_iter_mut()
+        .enumerate()
+        .for_each_init(Neighbours::new, |nb, (k, acc)| {
+            if order[k] >= c.fluid_count {
+                *acc = SVector::zeros();
+                return;
+            }
+            let (xi, vi, ri) = (sx[k], sv[k], sr[k]);
+            let pi = pressure_terms[k];
+            let count = collect_neighbours(grid, sx, &xi, k, c.support2, nb);
+            let mut a = SVector::<f64, D>::zeros();
+            for &(j, r2) in &nb[..count] {
+                let j = j as usize;
+                let rij = xi - sx[j];
+                let grad = rij * kernel.derivative_over_r(r2.sqrt());
+                let rj = sr[j];
+                let mut coefficient = pi + pressure_terms[j];
+                let approach = (vi - sv[j]).dot(&rij);
+                if approach < 0.0 {
+                    let mu = h * approach / (r2 + eta2);
+                    coefficient -= alpha_c * mu / (0.5 * (ri + rj));
+                }
+                a -= grad * (m * coefficient);
+            }
+            *acc = a + c.g;
+        });
 }
