@@ -1,5 +1,6 @@
 //! The weakly compressible fluid: state, one step, and what a run reports.
 
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -44,11 +45,16 @@ pub struct AdvanceReport {
 /// [`Fluid::reset_timings`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PhaseTimings {
-    /// Sorting particles by cell, and gathering their data into and out of that order.
+    /// Sorting particles by cell and permuting them into that order, then finding each particle's
+    /// neighbours and the kernel derivative (dW/dr)/r at each pair. With the summation method this
+    /// pass also sums the densities. With the continuity method it runs chunk by chunk together
+    /// with the forces, so the pass's wall time is split between this and
+    /// [`forces`](Self::forces) in proportion to their CPU time.
     pub neighbour_search: Duration,
-    /// Density summation and the equation of state (only the latter with the continuity method).
+    /// The equation of state, and the continuity equation's density rates (over the pairs) with
+    /// the continuity method; with summation the density sums are counted in the search.
     pub density: Duration,
-    /// Pressure, viscosity and gravity forces (and the continuity equation's density rate).
+    /// Pressure, viscosity and gravity forces over the pairs.
     pub forces: Duration,
     /// Step size, the checks of the new state, and the position, velocity and density updates.
     pub integration: Duration,
@@ -840,26 +846,18 @@ impl<const D: usize> Fluid<D> {
         let summation = params.density == DensityMethod::Summation;
         s.pairs
             .resize_with(n.div_ceil(PAIR_CHUNK), PairChunk::default);
-        let (sx, pairs, out) = (&self.positions, &mut s.pairs, &mut self.densities);
-        match (kernel.cubic_profile(), kernel.wendland_profile()) {
-            (Some(k), _) => pair_loop(k, grid, sx, support2, m, summation, pairs, out),
-            (_, Some(k)) => pair_loop(k, grid, sx, support2, m, summation, pairs, out),
-            _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
-        }
-        let t1 = Instant::now();
-
         let b = params.tait_stiffness();
-        self.pressures
-            .par_iter_mut()
-            .zip(s.pressure_terms.par_iter_mut())
-            .zip(self.densities.par_iter())
-            .zip(self.ids.par_iter())
-            .for_each(|(((p, term), &r), &i)| {
-                *p = Self::pressure(&params, b, r, summation || i >= nf);
-                *term = *p / (r * r);
-            });
-        let t2 = Instant::now();
-
+        let pressures = |pressures: &mut [f64], terms: &mut [f64], densities: &[f64]| {
+            pressures
+                .par_iter_mut()
+                .zip(terms.par_iter_mut())
+                .zip(densities.par_iter())
+                .zip(self.ids.par_iter())
+                .for_each(|(((p, term), &r), &i)| {
+                    *p = Self::pressure(&params, b, r, summation || i >= nf);
+                    *term = *p / (r * r);
+                });
+        };
         let h = params.smoothing_length;
         let constants = ForceConstants {
             m,
@@ -869,19 +867,64 @@ impl<const D: usize> Fluid<D> {
             g: params.gravity,
             fluid_count: nf,
         };
-        force_loop(
-            &self.ids,
-            &s.pairs,
-            &constants,
-            (&self.positions, &self.velocities),
-            (&self.densities, &s.pressure_terms),
-            &mut self.accelerations,
-        );
+        let (search, density, forces);
+        if summation {
+            // Densities first (with the pairs), then pressures, then forces over the pairs.
+            let (sx, pairs, out) = (&self.positions, &mut s.pairs, &mut self.densities);
+            match (kernel.cubic_profile(), kernel.wendland_profile()) {
+                (Some(k), _) => summation_pair_loop(k, grid, sx, support2, m, pairs, out),
+                (_, Some(k)) => summation_pair_loop(k, grid, sx, support2, m, pairs, out),
+                _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
+            }
+            let t1 = Instant::now();
+            pressures(&mut self.pressures, &mut s.pressure_terms, &self.densities);
+            let t2 = Instant::now();
+            let inputs = ForceInputs {
+                c: &constants,
+                ids: &self.ids,
+                sx: &self.positions,
+                sv: &self.velocities,
+                sr: &self.densities,
+                terms: &s.pressure_terms,
+            };
+            self.accelerations
+                .par_chunks_mut(PAIR_CHUNK)
+                .zip(s.pairs.par_iter())
+                .enumerate()
+                .for_each(|(c, (out, chunk))| force_chunk(c, chunk, &inputs, out));
+            (search, density, forces) = (t1 - t0, t2 - t1, t2.elapsed());
+        } else {
+            // The densities are the state's: pressures first, then, chunk by chunk, the pairs
+            // and the forces over them while they are in cache.
+            let t1 = Instant::now();
+            pressures(&mut self.pressures, &mut s.pressure_terms, &self.densities);
+            let t2 = Instant::now();
+            let inputs = ForceInputs {
+                c: &constants,
+                ids: &self.ids,
+                sx: &self.positions,
+                sv: &self.velocities,
+                sr: &self.densities,
+                terms: &s.pressure_terms,
+            };
+            let cpu = [AtomicU64::new(0), AtomicU64::new(0)];
+            let (pairs, out) = (&mut s.pairs, &mut self.accelerations);
+            match (kernel.cubic_profile(), kernel.wendland_profile()) {
+                (Some(k), _) => pair_force_loop(k, grid, support2, &inputs, pairs, out, &cpu),
+                (_, Some(k)) => pair_force_loop(k, grid, support2, &inputs, pairs, out, &cpu),
+                _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
+            }
+            // The pass's wall time, split between search and forces as their CPU times.
+            let wall = t2.elapsed();
+            let (a, f) = (cpu[0].load(Relaxed) as f64, cpu[1].load(Relaxed) as f64);
+            let share = if a + f > 0.0 { a / (a + f) } else { 0.5 };
+            let pass_search = wall.mul_f64(share);
+            (search, density, forces) = ((t1 - t0) + pass_search, t2 - t1, wall - pass_search);
+        }
         self.evaluated = true;
-        let t3 = Instant::now();
-        self.timings.neighbour_search += t1 - t0;
-        self.timings.density += t2 - t1;
-        self.timings.forces += t3 - t2;
+        self.timings.neighbour_search += search;
+        self.timings.density += density;
+        self.timings.forces += forces;
         self.timings.evaluations += 1;
     }
 }
@@ -922,17 +965,14 @@ fn collect_neighbours<const D: usize>(
     count
 }
 
-/// Finds every sorted slot's neighbours and their (dW/dr)/r into `chunks` and, with `summation`,
-/// its density ρ = m Σⱼ W(rᵢⱼ) over every particle within the support, itself included, into
-/// `densities` (left alone otherwise).
-#[allow(clippy::too_many_arguments)]
-fn pair_loop<K: Profile, const D: usize>(
+/// Finds every slot's neighbours and their (dW/dr)/r into `chunks`, and its density
+/// ρ = m Σⱼ W(rᵢⱼ) over every particle within the support, itself included, into `densities`.
+fn summation_pair_loop<K: Profile, const D: usize>(
     kernel: K,
     grid: &NeighbourGrid<D>,
     sx: &[SVector<f64, D>],
     support2: f64,
     m: f64,
-    summation: bool,
     chunks: &mut [PairChunk],
     densities: &mut [f64],
 ) {
@@ -946,34 +986,77 @@ fn pair_loop<K: Profile, const D: usize>(
             chunk.derivatives.clear();
             for (i, rho) in rho.iter_mut().enumerate() {
                 let k = c * PAIR_CHUNK + i;
-                // With summation the particle itself is in the list, in its place in grid order,
-                // for the density; it is no pair.
-                let skip = if summation { usize::MAX } else { k };
-                let count = collect_neighbours(grid, sx, &sx[k], skip, support2, nb);
+                // The particle itself is in the list, in its place in grid order, for the density;
+                // it is no pair.
+                let count = collect_neighbours(grid, sx, &sx[k], usize::MAX, support2, nb);
                 let found = &nb[..count];
-                if summation {
-                    let mut sum = 0.0;
-                    for &(_, r2) in found {
-                        sum += kernel.value(r2.sqrt());
-                    }
-                    *rho = m * sum;
-                    for &(j, r2) in found {
-                        if j as usize != k {
-                            chunk.neighbours.push(j);
-                            chunk.derivatives.push(kernel.derivative_over_r(r2.sqrt()));
-                        }
-                    }
-                } else {
-                    // A loop without branches, which the compiler vectorises.
-                    chunk.neighbours.extend(found.iter().map(|&(j, _)| j));
-                    let base = chunk.derivatives.len();
-                    chunk.derivatives.resize(base + count, 0.0);
-                    for (f, &(_, r2)) in chunk.derivatives[base..].iter_mut().zip(found) {
-                        *f = kernel.derivative_over_r(r2.sqrt());
+                let mut sum = 0.0;
+                for &(_, r2) in found {
+                    sum += kernel.value(r2.sqrt());
+                }
+                *rho = m * sum;
+                for &(j, r2) in found {
+                    if j as usize != k {
+                        chunk.neighbours.push(j);
+                        chunk.derivatives.push(kernel.derivative_over_r(r2.sqrt()));
                     }
                 }
                 chunk.ends.push(chunk.neighbours.len() as u32);
             }
+        });
+}
+
+/// Finds the neighbours of the slots of chunk `c` and their (dW/dr)/r into `chunk`.
+#[inline(always)]
+fn find_pairs<K: Profile, const D: usize>(
+    kernel: K,
+    grid: &NeighbourGrid<D>,
+    sx: &[SVector<f64, D>],
+    support2: f64,
+    (c, len): (usize, usize),
+    chunk: &mut PairChunk,
+    nb: &mut Neighbours,
+) {
+    chunk.ends.clear();
+    chunk.neighbours.clear();
+    chunk.derivatives.clear();
+    for k in c * PAIR_CHUNK..c * PAIR_CHUNK + len {
+        let count = collect_neighbours(grid, sx, &sx[k], k, support2, nb);
+        let found = &nb[..count];
+        // A loop without branches, which the compiler vectorises.
+        chunk.neighbours.extend(found.iter().map(|&(j, _)| j));
+        let base = chunk.derivatives.len();
+        chunk.derivatives.resize(base + count, 0.0);
+        for (f, &(_, r2)) in chunk.derivatives[base..].iter_mut().zip(found) {
+            *f = kernel.derivative_over_r(r2.sqrt());
+        }
+        chunk.ends.push(chunk.neighbours.len() as u32);
+    }
+}
+
+/// Chunk by chunk, finds the slots' neighbours and (dW/dr)/r into `chunks` and then their
+/// accelerations into `out` from them while they are in cache; adds the CPU time of each part (ns)
+/// to `cpu`.
+fn pair_force_loop<K: Profile, const D: usize>(
+    kernel: K,
+    grid: &NeighbourGrid<D>,
+    support2: f64,
+    inputs: &ForceInputs<'_, D>,
+    chunks: &mut [PairChunk],
+    out: &mut [SVector<f64, D>],
+    cpu: &[AtomicU64; 2],
+) {
+    chunks
+        .par_iter_mut()
+        .zip(out.par_chunks_mut(PAIR_CHUNK))
+        .enumerate()
+        .for_each_init(Neighbours::new, |nb, (c, (chunk, out))| {
+            let t0 = Instant::now();
+            find_pairs(kernel, grid, inputs.sx, support2, (c, out.len()), chunk, nb);
+            let t1 = Instant::now();
+            force_chunk(c, chunk, inputs, out);
+            cpu[0].fetch_add((t1 - t0).as_nanos() as u64, Relaxed);
+            cpu[1].fetch_add(t1.elapsed().as_nanos() as u64, Relaxed);
         });
 }
 
@@ -1017,46 +1100,53 @@ struct ForceConstants<const D: usize> {
     fluid_count: u32,
 }
 
-/// The acceleration of every sorted slot holding a fluid particle (zero for boundary particles),
-/// −Σⱼ m (pᵢ/ρᵢ² + pⱼ/ρⱼ² + Πᵢⱼ) ∇ᵢWᵢⱼ + g, over the pairs of [`pair_loop`].
-fn force_loop<const D: usize>(
-    ids: &[u32],
-    chunks: &[PairChunk],
-    c: &ForceConstants<D>,
-    (sx, sv): (&[SVector<f64, D>], &[SVector<f64, D>]),
-    (sr, pressure_terms): (&[f64], &[f64]),
-    out: &mut [SVector<f64, D>],
+/// What the force loop reads: the constants and the particle data by slot.
+struct ForceInputs<'a, const D: usize> {
+    c: &'a ForceConstants<D>,
+    ids: &'a [u32],
+    sx: &'a [SVector<f64, D>],
+    sv: &'a [SVector<f64, D>],
+    sr: &'a [f64],
+    /// pⱼ/ρⱼ².
+    terms: &'a [f64],
+}
+
+/// The accelerations of the slots of chunk `chunk_index` holding fluid particles (zero for
+/// boundary particles), −Σⱼ m (pᵢ/ρᵢ² + pⱼ/ρⱼ² + Πᵢⱼ) ∇ᵢWᵢⱼ + g, over the chunk's pairs.
+#[inline(always)]
+fn force_chunk<const D: usize>(
+    chunk_index: usize,
+    chunk: &PairChunk,
+    inputs: &ForceInputs<'_, D>,
+    accelerations: &mut [SVector<f64, D>],
 ) {
+    let c = inputs.c;
+    let (sx, sv, sr, pressure_terms) = (inputs.sx, inputs.sv, inputs.sr, inputs.terms);
     let (m, h, eta2, alpha_c) = (c.m, c.h, c.eta2, c.alpha_c);
-    out.par_chunks_mut(PAIR_CHUNK)
-        .zip(chunks.par_iter())
-        .enumerate()
-        .for_each(|(chunk_index, (accelerations, chunk))| {
-            for (i, acc) in accelerations.iter_mut().enumerate() {
-                let k = chunk_index * PAIR_CHUNK + i;
-                if ids[k] >= c.fluid_count {
-                    *acc = SVector::zeros();
-                    continue;
-                }
-                let (xi, vi, ri) = (sx[k], sv[k], sr[k]);
-                let pi = pressure_terms[k];
-                let (js, fs) = chunk.of(i);
-                let mut a = SVector::<f64, D>::zeros();
-                for (&j, &f) in js.iter().zip(fs) {
-                    let j = j as usize;
-                    let rij = xi - sx[j];
-                    let grad = rij * f;
-                    let rj = sr[j];
-                    let mut coefficient = pi + pressure_terms[j];
-                    let approach = (vi - sv[j]).dot(&rij);
-                    if approach < 0.0 {
-                        let r2 = rij.norm_squared();
-                        let mu = h * approach / (r2 + eta2);
-                        coefficient -= alpha_c * mu / (0.5 * (ri + rj));
-                    }
-                    a -= grad * (m * coefficient);
-                }
-                *acc = a + c.g;
+    for (i, acc) in accelerations.iter_mut().enumerate() {
+        let k = chunk_index * PAIR_CHUNK + i;
+        if inputs.ids[k] >= c.fluid_count {
+            *acc = SVector::zeros();
+            continue;
+        }
+        let (xi, vi, ri) = (sx[k], sv[k], sr[k]);
+        let pi = pressure_terms[k];
+        let (js, fs) = chunk.of(i);
+        let mut a = SVector::<f64, D>::zeros();
+        for (&j, &f) in js.iter().zip(fs) {
+            let j = j as usize;
+            let rij = xi - sx[j];
+            let grad = rij * f;
+            let rj = sr[j];
+            let mut coefficient = pi + pressure_terms[j];
+            let approach = (vi - sv[j]).dot(&rij);
+            if approach < 0.0 {
+                let r2 = rij.norm_squared();
+                let mu = h * approach / (r2 + eta2);
+                coefficient -= alpha_c * mu / (0.5 * (ri + rj));
             }
-        });
+            a -= grad * (m * coefficient);
+        }
+        *acc = a + c.g;
+    }
 }
