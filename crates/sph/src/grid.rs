@@ -119,8 +119,9 @@ impl<const D: usize> NeighbourGrid<D> {
     fn coords(&self, p: &SVector<f64, D>) -> [usize; D] {
         let mut c = [0usize; D];
         for a in 0..D {
-            let s = ((p[a] - self.origin[a]) * self.inv_cell).floor();
+            // Truncation is the floor for positive values (and no libm call on baseline x86-64);
             // NaN and negative values go to cell 0; values past the end to the last cell.
+            let s = (p[a] - self.origin[a]) * self.inv_cell;
             c[a] = if s > 0.0 {
                 (s as usize).min(self.dims[a] - 1)
             } else {
@@ -171,6 +172,27 @@ impl<const D: usize> NeighbourGrid<D> {
         starts.copy_within(0..last, 1);
         starts[0] = 0;
         self.cell_of = cell_of;
+    }
+
+    /// As [`rebuild`](Self::rebuild), but ordering the particles within a cell by `keys` (distinct,
+    /// one per position) instead of by index: a caller that stores its particles permuted keeps
+    /// the grid order of its own numbering.
+    ///
+    /// # Panics
+    /// If `keys` and `positions` differ in length, or as [`rebuild`](Self::rebuild).
+    pub fn rebuild_by_key(&mut self, positions: &[SVector<f64, D>], keys: &[u32]) {
+        assert_eq!(keys.len(), positions.len(), "one key per position");
+        self.rebuild(positions);
+        for c in 0..self.cell_count() {
+            let members =
+                &mut self.order[self.cell_start[c] as usize..self.cell_start[c + 1] as usize];
+            if members
+                .windows(2)
+                .any(|w| keys[w[0] as usize] > keys[w[1] as usize])
+            {
+                members.sort_unstable_by_key(|&i| keys[i as usize]);
+            }
+        }
     }
 
     /// Sorted slot → particle index, cell by cell (after [`rebuild`](Self::rebuild)).

@@ -167,6 +167,112 @@ impl<const D: usize> Kernel<D> {
     }
 }
 
+/// A kernel's radial profile with its kind resolved and its constants precomputed, for the
+/// neighbour loops: the same arithmetic as [`Kernel::value`] and [`Kernel::derivative_over_r`], bit
+/// for bit, with the pieces of the cubic spline chosen by selects rather than branches (whether a
+/// neighbour is inside q = 1 is unpredictable).
+pub(crate) trait Profile: Copy + Send + Sync {
+    /// W(r), as [`Kernel::value`].
+    fn value(&self, r: f64) -> f64;
+    /// (dW/dr)/r, as [`Kernel::derivative_over_r`].
+    fn derivative_over_r(&self, r: f64) -> f64;
+}
+
+/// The cubic spline's [`Profile`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CubicProfile {
+    inv_h: f64,
+    sigma: f64,
+    /// σ/h², as `derivative_over_r` computes it.
+    s: f64,
+}
+
+/// Wendland's quintic's [`Profile`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct WendlandProfile {
+    inv_h: f64,
+    sigma: f64,
+    s: f64,
+}
+
+impl<const D: usize> Kernel<D> {
+    /// The cubic spline's profile, if this is the cubic spline.
+    pub(crate) fn cubic_profile(&self) -> Option<CubicProfile> {
+        (self.kind == KernelKind::CubicSpline).then_some(CubicProfile {
+            inv_h: self.inv_h,
+            sigma: self.sigma,
+            s: self.sigma * self.inv_h * self.inv_h,
+        })
+    }
+
+    /// Wendland's quintic's profile, if this is Wendland's quintic.
+    pub(crate) fn wendland_profile(&self) -> Option<WendlandProfile> {
+        (self.kind == KernelKind::WendlandQuintic).then_some(WendlandProfile {
+            inv_h: self.inv_h,
+            sigma: self.sigma,
+            s: self.sigma * self.inv_h * self.inv_h,
+        })
+    }
+}
+
+impl Profile for CubicProfile {
+    #[inline(always)]
+    fn value(&self, r: f64) -> f64 {
+        let q = r * self.inv_h;
+        let inner = self.sigma * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
+        let t = 2.0 - q;
+        let outer = self.sigma * 0.25 * t * t * t;
+        let w = if q < 2.0 { outer } else { 0.0 };
+        if q < 1.0 {
+            inner
+        } else {
+            w
+        }
+    }
+
+    #[inline(always)]
+    fn derivative_over_r(&self, r: f64) -> f64 {
+        let q = r * self.inv_h;
+        let s = self.s;
+        let inner = s * (-3.0 + 2.25 * q);
+        let t = 2.0 - q;
+        let outer = -0.75 * s * t * t / q;
+        let d = if q < 2.0 { outer } else { 0.0 };
+        if q < 1.0 {
+            inner
+        } else {
+            d
+        }
+    }
+}
+
+impl Profile for WendlandProfile {
+    #[inline(always)]
+    fn value(&self, r: f64) -> f64 {
+        let q = r * self.inv_h;
+        let t = 1.0 - 0.5 * q;
+        let t2 = t * t;
+        let w = self.sigma * t2 * t2 * (2.0 * q + 1.0);
+        if q < 2.0 {
+            w
+        } else {
+            0.0
+        }
+    }
+
+    #[inline(always)]
+    fn derivative_over_r(&self, r: f64) -> f64 {
+        let q = r * self.inv_h;
+        let t = 1.0 - 0.5 * q;
+        let d = -5.0 * self.s * t * t * t;
+        if q < 2.0 {
+            d
+        } else {
+            0.0
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -296,5 +402,36 @@ mod tests {
             "wendland-quintic".parse::<KernelKind>().unwrap(),
             KernelKind::WendlandQuintic
         );
+    }
+
+    #[test]
+    fn profiles_match_the_kernel_bit_for_bit() {
+        for h in [0.013, 0.026, 1.0, 7.5] {
+            let k2 = Kernel::<2>::new(KernelKind::CubicSpline, h).unwrap();
+            let k3 = Kernel::<3>::new(KernelKind::WendlandQuintic, h).unwrap();
+            let (c, w) = (k2.cubic_profile().unwrap(), k3.wendland_profile().unwrap());
+            assert!(k2.wendland_profile().is_none() && k3.cubic_profile().is_none());
+            // Every r from 0 past the support, with the pieces' edges q = 1 and 2 and their
+            // neighbouring floats.
+            let mut points: Vec<f64> = (0..=5000).map(|i| i as f64 * 2.2 * h / 5000.0).collect();
+            for edge in [h, 2.0 * h] {
+                let bits = edge.to_bits();
+                points.extend([edge, f64::from_bits(bits - 1), f64::from_bits(bits + 1)]);
+            }
+            for &x in &points {
+                assert_eq!(c.value(x).to_bits(), k2.value(x).to_bits(), "h {h} r {x}");
+                assert_eq!(
+                    c.derivative_over_r(x).to_bits(),
+                    k2.derivative_over_r(x).to_bits(),
+                    "h {h} r {x}"
+                );
+                assert_eq!(w.value(x).to_bits(), k3.value(x).to_bits(), "h {h} r {x}");
+                assert_eq!(
+                    w.derivative_over_r(x).to_bits(),
+                    k3.derivative_over_r(x).to_bits(),
+                    "h {h} r {x}"
+                );
+            }
+        }
     }
 }
