@@ -8,8 +8,9 @@
 //!   drive PD in correction form (x ← x + A₃₂⁻¹ (b − A x), with A and the residual in f64, so that
 //!   the fixed point stays the f64 one);
 //! - `f64/usize 2 threads`: the three columns split two and one over two threads (each thread has
-//!   its own scratch), against faer's own 2-thread solve;
-//! and prints, for the f32 solve, the relative error of one solve and of one refinement step.
+//!   its own scratch), against faer's own 2-thread solve.
+//!
+//! It also prints, for the f32 solve, the relative error of one solve and of one refinement step.
 //!
 //! `cargo run --release -p hooke-solvers --example pd_solve_variants -- [N=160] [repeats=30]`
 

@@ -47,8 +47,11 @@ pub struct CholeskyParams {
     pub kind: FactorKind,
     /// Threads for the numeric factorisation (1: serial). Default 1.
     pub factor_threads: usize,
-    /// Threads for the triangular solves. Default 1: on 2 cores faer's parallel supernodal solve
-    /// was measured many times slower than the serial one.
+    /// Threads for the triangular solves: with 2 or more, a solve of several right-hand sides
+    /// splits its columns over two threads, each block solved serially (the same bits as one
+    /// thread; one column is always solved on one). Default 1. faer's own parallel solve was
+    /// measured slower than the serial one on 2 cores; the split three-column solve of projective
+    /// dynamics 1.15× faster on cloth-160 and 1.28× on cloth-320 (`examples/pd_solve_variants`).
     pub solve_threads: usize,
 }
 
@@ -160,6 +163,9 @@ pub struct SparseCholesky {
     symbolic: Arc<SymbolicCholesky<usize>>,
     factor: Vec<f64>,
     scratch: MemBuffer,
+    /// Scratch of the second thread's column in a split solve (see
+    /// [`CholeskyParams::solve_threads`]).
+    column_scratch: MemBuffer,
     params: CholeskyParams,
     n: usize,
     /// The analysed pattern, compact CSC.
@@ -264,13 +270,20 @@ impl SparseCholesky {
             ),
         ]);
         // Three right-hand sides (the x, y, z coordinates) is the widest solve hooke makes.
-        let solve_req = symbolic.solve_in_place_scratch::<f64>(3, par(params.solve_threads));
+        let solve_req = symbolic.solve_in_place_scratch::<f64>(3, Par::Seq);
         let scratch = MemBuffer::try_new(StackReq::any_of(&[factor_req, solve_req]))
             .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
+        let column_scratch = MemBuffer::try_new(if params.solve_threads > 1 {
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)
+        } else {
+            StackReq::EMPTY
+        })
+        .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
         Ok(SparseCholesky {
             factor: vec![0.0; symbolic.len_val()],
             symbolic,
             scratch,
+            column_scratch,
             params,
             n,
             col_ptr,
@@ -443,19 +456,26 @@ impl SparseCholesky {
             "solve_in_place needs a successful factorisation first"
         );
         assert_eq!(rhs.nrows(), self.n, "right-hand side rows");
-        let par = par(self.params.solve_threads);
+        let split = self.params.solve_threads > 1;
         let k = rhs.ncols();
         let mut start = 0;
         while start < k {
             let width = (k - start).min(3);
-            let stack = MemStack::new(&mut self.scratch);
             let columns = rhs.rb_mut().subcols_mut(start, width);
-            if self.factored == Stored::Llt {
-                faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.factor)
-                    .solve_in_place_with_conj(Conj::No, columns, par, stack);
+            let (symbolic, factor, llt) = (
+                &*self.symbolic,
+                &self.factor[..],
+                self.factored == Stored::Llt,
+            );
+            if split && width > 1 {
+                let (left, right) = columns.split_at_col_mut(width - 1);
+                let (a, b) = (&mut self.scratch, &mut self.column_scratch);
+                rayon::join(
+                    || solve_serial(symbolic, factor, llt, left, a),
+                    || solve_serial(symbolic, factor, llt, right, b),
+                );
             } else {
-                faer::sparse::linalg::cholesky::LdltRef::new(&self.symbolic, &self.factor)
-                    .solve_in_place_with_conj(Conj::No, columns, par, stack);
+                solve_serial(symbolic, factor, llt, columns, &mut self.scratch);
             }
             start += width;
         }
@@ -473,3 +493,29 @@ impl SparseCholesky {
 }
 
 use faer::reborrow::ReborrowMut;
+
+/// Solve in place with the factor `factor` of `symbolic` (LLᵀ if `llt`, else LDLᵀ), on this thread.
+fn solve_serial(
+    symbolic: &SymbolicCholesky<usize>,
+    factor: &[f64],
+    llt: bool,
+    columns: MatMut<'_, f64>,
+    scratch: &mut MemBuffer,
+) {
+    let stack = MemStack::new(scratch);
+    if llt {
+        faer::sparse::linalg::cholesky::LltRef::new(symbolic, factor).solve_in_place_with_conj(
+            Conj::No,
+            columns,
+            Par::Seq,
+            stack,
+        );
+    } else {
+        faer::sparse::linalg::cholesky::LdltRef::new(symbolic, factor).solve_in_place_with_conj(
+            Conj::No,
+            columns,
+            Par::Seq,
+            stack,
+        );
+    }
+}
