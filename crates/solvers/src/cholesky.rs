@@ -40,6 +40,12 @@ pub enum FactorKind {
     Supernodal,
 }
 
+/// The smallest factor (stored values) whose solves [`CholeskyParams::solve_threads`] splits over
+/// two threads. Below it the fork costs more than the second thread saves: PD's three-column
+/// solve split 2 + 1 is 5.8× slower on cloth-10 (1,406 values), 1.6× on cloth-40 (61,169), even on
+/// cloth-80 (371,164), and 1.15× faster on cloth-160 (1.87 M; `examples/pd_solve_variants`).
+pub const SPLIT_MIN_FACTOR: usize = 500_000;
+
 /// Settings of [`SparseCholesky`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CholeskyParams {
@@ -49,7 +55,8 @@ pub struct CholeskyParams {
     pub factor_threads: usize,
     /// Threads for the triangular solves: with 2 or more, a solve of several right-hand sides
     /// splits its columns over two threads, each block solved serially (the same bits as one
-    /// thread; one column is always solved on one). Default 1. faer's own parallel solve was
+    /// thread; one column, and a factor of fewer than [`SPLIT_MIN_FACTOR`] stored values, always
+    /// on one). Default 1. faer's own parallel solve was
     /// measured slower than the serial one on 2 cores; the split three-column solve of projective
     /// dynamics 1.15× faster on cloth-160 and 1.28× on cloth-320 (`examples/pd_solve_variants`).
     pub solve_threads: usize,
@@ -456,7 +463,7 @@ impl SparseCholesky {
             "solve_in_place needs a successful factorisation first"
         );
         assert_eq!(rhs.nrows(), self.n, "right-hand side rows");
-        let split = self.params.solve_threads > 1;
+        let split = self.params.solve_threads > 1 && self.factor.len() >= SPLIT_MIN_FACTOR;
         let k = rhs.ncols();
         let mut start = 0;
         while start < k {

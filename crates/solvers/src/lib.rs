@@ -55,7 +55,9 @@ mod report;
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use chebyshev::{ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS};
-pub use cholesky::{CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky};
+pub use cholesky::{
+    CholeskyError, CholeskyParams, FactorKind, Inertia, SparseCholesky, SPLIT_MIN_FACTOR,
+};
 pub use jacobi::{Jacobi, JacobiParams};
 pub use lbfgs::{
     Lbfgs, LbfgsError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY, LBFGS_MAX_ITERATIONS,

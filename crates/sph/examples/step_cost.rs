@@ -2,9 +2,8 @@
 //! `hooke bench --sph`, without the command's plot).
 //!
 //! `cargo run --release -p hooke-sph --example step_cost -- [--shuffle] 10000 100000 1000000`
-use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
-use hooke_sph::{Fluid, FluidParams};
-use nalgebra::SVector;
+use hooke_sph::scenes::step_cost_column;
+use hooke_sph::Fluid;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -26,19 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "N,boundary,ms_per_step,particle_steps_per_s,search_ms,density_ms,forces_ms,update_ms"
     );
     for n in counts {
-        let side = (n as f64).sqrt().round();
-        let spec = ColumnInTank::<2> {
-            tank_min: SVector::zeros(),
-            tank_max: SVector::<f64, 2>::new(2.0, 1.5),
-            walls: [[true, true], [true, false]],
-            column_max: SVector::<f64, 2>::new(1.0, 1.0),
-            dx: 1.0 / side,
-            layers: WALL_LAYERS,
-            params: FluidParams {
-                sound_speed: 0.0,
-                ..FluidParams::default()
-            },
-        };
+        let spec = step_cost_column(n);
         let mut setup = spec.build()?;
         if shuffle {
             // Fisher-Yates with a fixed LCG: the same order every run.

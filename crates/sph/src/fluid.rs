@@ -376,28 +376,13 @@ impl<const D: usize> Fluid<D> {
             for (k, &i) in self.ids.iter().enumerate() {
                 slot_of[i as usize] = k as u32;
             }
-            let gather = |i: usize| slot_of[i] as usize;
+            let slot_of = &slot_of;
             View {
-                positions: (0..n)
-                    .into_par_iter()
-                    .map(|i| self.positions[gather(i)])
-                    .collect(),
-                velocities: (0..n)
-                    .into_par_iter()
-                    .map(|i| self.velocities[gather(i)])
-                    .collect(),
-                densities: (0..n)
-                    .into_par_iter()
-                    .map(|i| self.densities[gather(i)])
-                    .collect(),
-                pressures: (0..n)
-                    .into_par_iter()
-                    .map(|i| self.pressures[gather(i)])
-                    .collect(),
-                accelerations: (0..n)
-                    .into_par_iter()
-                    .map(|i| self.accelerations[gather(i)])
-                    .collect(),
+                positions: in_particle_order(slot_of, &self.positions),
+                velocities: in_particle_order(slot_of, &self.velocities),
+                densities: in_particle_order(slot_of, &self.densities),
+                pressures: in_particle_order(slot_of, &self.pressures),
+                accelerations: in_particle_order(slot_of, &self.accelerations),
             }
         })
     }
@@ -1149,4 +1134,12 @@ fn force_chunk<const D: usize>(
         }
         *acc = a + c.g;
     }
+}
+
+/// `values` (stored in grid order) in particle order: particle i's value is at `slot_of[i]`.
+fn in_particle_order<T: Copy + Send + Sync>(slot_of: &[u32], values: &[T]) -> Vec<T> {
+    slot_of
+        .par_iter()
+        .map(|&slot| values[slot as usize])
+        .collect()
 }

@@ -10,9 +10,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
-use hooke_sph::{Fluid, FluidParams};
-use nalgebra::SVector;
+use hooke_sph::scenes::step_cost_column;
+use hooke_sph::Fluid;
 use plotters::coord::combinators::IntoLogRange;
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -79,19 +78,7 @@ pub(crate) fn parse_counts(text: &str) -> Result<Vec<usize>, SphCliError> {
 
 /// Measures one count (see the [module](self)).
 pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCliError> {
-    let side = (count as f64).sqrt().round().max(2.0);
-    let spec = ColumnInTank::<2> {
-        tank_min: SVector::zeros(),
-        tank_max: SVector::<f64, 2>::new(2.0, 1.5),
-        walls: [[true, true], [true, false]],
-        column_max: SVector::<f64, 2>::new(1.0, 1.0),
-        dx: 1.0 / side,
-        layers: WALL_LAYERS,
-        params: FluidParams {
-            sound_speed: 0.0,
-            ..FluidParams::default()
-        },
-    };
+    let spec = step_cost_column(count);
     let name = format!("bench N={count}");
     let fail = |what: &str, e| SphCliError::fluid(&name, what, e);
     let mut fluid =
