@@ -305,3 +305,23 @@ fn bad_arguments_exit_1_with_a_message() {
         assert!(stderr.contains(needle), "{args:?}: {stderr}");
     }
 }
+
+#[test]
+fn bench_help_names_every_solver_spec() {
+    let out = Command::new(env!("CARGO_BIN_EXE_hooke"))
+        .args(["bench", "--help"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    for kind in hooke_cli::bench::SolverKind::ALL {
+        let name = kind.name();
+        // As a spec (`name:` or `name,`/`.` when it takes no values), not as a prefix of another.
+        assert!(
+            [":", ",", "."]
+                .iter()
+                .any(|end| help.contains(&format!(" {name}{end}"))),
+            "`hooke bench --help` does not name {name}:\n{help}"
+        );
+    }
+}

@@ -507,11 +507,59 @@ fn run_help_lists_every_integrator_and_solver_flag() {
         "--energy-limit",
         "--pin-method",
         "counter-force",
+        "--relaxation",
+        "buckling",
     ] {
         assert!(
             text.contains(word),
             "`hooke run --help` mentions {word}:\n{text}"
         );
+    }
+}
+
+#[test]
+fn the_relaxation_flag_opts_newton_into_the_buckling_preset() {
+    // cloth-10 by Newton with the buckling preset: the run finishes and its summary records the
+    // preset; plain Newton records "none"; other integrators and unknown names are refused.
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let out_dir = dir.path().join(extra.join("_"));
+        let out_dir = out_dir.to_str().unwrap().to_string();
+        let mut args = vec![
+            "run", "cloth-10", "--steps", "2", "--out", &out_dir, "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let out = hooke(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        let summary = std::fs::read_to_string(Path::new(&out_dir).join("summary.json"))
+            .ok()
+            .map(|text| serde_json::from_str::<serde_json::Value>(&text).unwrap());
+        (out.status.success(), stderr, summary)
+    };
+    for (preset, flags) in [
+        (
+            "buckling",
+            &["--integrator", "newton", "--relaxation", "buckling"][..],
+        ),
+        ("none", &["--integrator", "newton"][..]),
+    ] {
+        let (ok, stderr, summary) = run(flags);
+        assert!(ok, "{flags:?}: {stderr}");
+        assert_eq!(summary.unwrap()["solver_settings"]["relaxation"], preset);
+    }
+    for (flags, expected) in [
+        (
+            &["--integrator", "pd", "--relaxation", "buckling"][..],
+            "applies only to the newton integrator",
+        ),
+        (
+            &["--integrator", "newton", "--relaxation", "sweeps"][..],
+            "invalid --relaxation: unknown relaxation \"sweeps\"",
+        ),
+    ] {
+        let (ok, stderr, _) = run(flags);
+        assert!(!ok, "{flags:?} should fail");
+        assert!(stderr.contains(expected), "{flags:?}: {stderr}");
     }
 }
 

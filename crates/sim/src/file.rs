@@ -53,6 +53,7 @@
 //! # iterations = 1000      # linearized: linear solver limit; newton: iteration limit; pd: iterations
 //! # tolerance = 1e-8       # linearized: relative residual; newton: relative gradient; pd: change
 //! # pin_method = "reduction"  # or "counter-force" (linearized, newton; pd refuses it)
+//! # relaxation = "none"    # newton: or "buckling" (sweeps and fold elimination between steps)
 //!
 //! [run]
 //! steps = 30
@@ -75,7 +76,8 @@ use crate::contact::{Contact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{
-    parse_energy_limit, Integrator, LinearSolver, PinMethod, Settings, SolverOptions,
+    parse_energy_limit, Integrator, LinearSolver, PinMethod, RelaxationPreset, Settings,
+    SolverOptions,
 };
 use crate::scene::{Keyframe, PinPath, Pins, Scene};
 use crate::scenes::{AnySetup, Setup};
@@ -309,6 +311,7 @@ struct IntegratorSection {
     tolerance: Option<f64>,
     energy_limit: Option<EnergyLimitValue>,
     pin_method: Option<String>,
+    relaxation: Option<String>,
 }
 
 /// `integrator.energy_limit`: a factor, or "off".
@@ -798,6 +801,13 @@ impl Context<'_> {
             ),
             None => None,
         };
+        let relaxation = match &i.relaxation {
+            Some(name) => Some(
+                name.parse::<RelaxationPreset>()
+                    .map_err(|e| self.invalid("integrator.relaxation", e))?,
+            ),
+            None => None,
+        };
         // One option at a time, so that an error names its key.
         for (key, options) in [
             (
@@ -828,6 +838,13 @@ impl Context<'_> {
                     ..SolverOptions::default()
                 },
             ),
+            (
+                "integrator.relaxation",
+                SolverOptions {
+                    relaxation,
+                    ..SolverOptions::default()
+                },
+            ),
         ] {
             settings
                 .apply_options(&options)
@@ -847,6 +864,7 @@ impl Context<'_> {
 mod tests {
     use super::*;
     use crate::integrator::{LinearSolver, SolverOptions};
+    use hooke_solvers::Relaxation;
 
     const BASE: &str = r#"
 [mesh]
@@ -947,6 +965,7 @@ tolerance = 1e-9
                 linear_solver: Some(LinearSolver::Jacobi),
                 iterations: Some(123),
                 tolerance: Some(1e-9),
+                relaxation: None,
             })
             .unwrap();
         assert_eq!(setup.settings, expected);
@@ -956,6 +975,45 @@ tolerance = 1e-9
         .unwrap();
         assert_eq!(newton.settings.newton.max_iterations, 9);
         assert_eq!(newton.settings.newton.tolerance, 1e-10);
+    }
+
+    /// `relaxation` opts Newton into the buckling preset; it names its key when misspelt or given
+    /// to another integrator.
+    #[test]
+    fn relaxation_key_chooses_newtons_preset() {
+        let parse = |method: &str, relaxation: &str| {
+            parse(&format!(
+                "[integrator]\nmethod = \"{method}\"\ntime_step = 0.01\n{relaxation}"
+            ))
+        };
+        let plain = parse("newton", "").unwrap();
+        assert_eq!(plain.settings.newton.relaxation, Relaxation::NONE);
+        let relaxed = parse("newton", "relaxation = \"buckling\"\n").unwrap();
+        assert_eq!(relaxed.settings.newton.relaxation, Relaxation::BUCKLING);
+        assert_eq!(
+            relaxed.settings.solver_options().relaxation,
+            Some(RelaxationPreset::Buckling)
+        );
+        let none = parse("newton", "relaxation = \"none\"\n").unwrap();
+        assert_eq!(none.settings.newton.relaxation, Relaxation::NONE);
+        for (method, line, expected) in [
+            (
+                "newton",
+                "relaxation = \"sweeps\"\n",
+                "unknown relaxation \"sweeps\"",
+            ),
+            (
+                "pd",
+                "relaxation = \"buckling\"\n",
+                "applies only to the newton integrator",
+            ),
+        ] {
+            let err = parse(method, line).err().unwrap().to_string();
+            assert!(
+                err.contains("integrator.relaxation") && err.contains(expected),
+                "{method} {line}: {err}"
+            );
+        }
     }
 
     /// A size in a file must not decide how much the process allocates: a cloth or beam above

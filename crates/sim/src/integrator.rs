@@ -179,6 +179,76 @@ impl fmt::Display for LinearSolver {
     }
 }
 
+/// Newton's nonlinear relaxation between its steps, by preset ([`hooke_solvers::Relaxation`]):
+/// the `relaxation` key of a scene file's `[integrator]` section and `hooke run --relaxation`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum RelaxationPreset {
+    /// Plain Newton, the default ([`hooke_solvers::Relaxation::NONE`]).
+    #[default]
+    None,
+    /// Block sweeps and the nonlinear elimination of folds
+    /// ([`hooke_solvers::Relaxation::BUCKLING`]): faster on crushed cloth and large buckling
+    /// steps, slower on most other scenes (`benches/results/issue15-newton-default.md`).
+    Buckling,
+}
+
+impl RelaxationPreset {
+    /// Every preset, in the order the command lists them.
+    pub const ALL: &'static [RelaxationPreset] =
+        &[RelaxationPreset::None, RelaxationPreset::Buckling];
+
+    /// The name used in scene files and on the command line (`none`, `buckling`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            RelaxationPreset::None => "none",
+            RelaxationPreset::Buckling => "buckling",
+        }
+    }
+
+    /// The solver's settings of this preset.
+    pub fn relaxation(&self) -> hooke_solvers::Relaxation {
+        match self {
+            RelaxationPreset::None => hooke_solvers::Relaxation::NONE,
+            RelaxationPreset::Buckling => hooke_solvers::Relaxation::BUCKLING,
+        }
+    }
+
+    /// The preset whose settings these are, if any (a caller may set others by hand).
+    pub fn of(relaxation: &hooke_solvers::Relaxation) -> Option<RelaxationPreset> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|preset| preset.relaxation() == *relaxation)
+    }
+}
+
+impl fmt::Display for RelaxationPreset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown relaxation preset name.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown relaxation {name:?}; expected \"none\" or \"buckling\"")]
+pub struct UnknownRelaxation {
+    /// The name that was given.
+    pub name: String,
+}
+
+impl FromStr for RelaxationPreset {
+    type Err = UnknownRelaxation;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "none" => Ok(RelaxationPreset::None),
+            "buckling" => Ok(RelaxationPreset::Buckling),
+            _ => Err(UnknownRelaxation { name: s.into() }),
+        }
+    }
+}
+
 /// An unknown linear solver name.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("unknown linear solver {name:?}; expected \"jacobi\" or \"cg\"")]
@@ -468,6 +538,8 @@ pub struct SolverOptions {
     /// (0: Newton stops only at its iteration limit or the round-off floor, PD always runs its
     /// iterations).
     pub tolerance: Option<f64>,
+    /// Newton's relaxation preset (newton only).
+    pub relaxation: Option<RelaxationPreset>,
 }
 
 impl Settings {
@@ -578,6 +650,16 @@ impl Settings {
                 _ => return Err(no_solver("iterations", iterations.to_string())),
             }
         }
+        if let Some(preset) = options.relaxation {
+            if integrator != Integrator::Newton {
+                return Err(SimError::invalid(
+                    "relaxation",
+                    preset,
+                    format!("applies only to the newton integrator (this run uses {integrator})"),
+                ));
+            }
+            self.newton.relaxation = preset.relaxation();
+        }
         if let Some(tolerance) = options.tolerance {
             match integrator {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
@@ -615,10 +697,12 @@ impl Settings {
                 linear_solver: Some(self.linearized.solver),
                 iterations: Some(self.linearized.max_iterations),
                 tolerance: Some(self.linearized.tolerance),
+                relaxation: None,
             },
             Integrator::Newton => SolverOptions {
                 iterations: Some(self.newton.max_iterations),
                 tolerance: Some(self.newton.tolerance),
+                relaxation: RelaxationPreset::of(&self.newton.relaxation),
                 ..SolverOptions::default()
             },
             Integrator::ProjectiveDynamics => SolverOptions {
@@ -657,6 +741,10 @@ mod tests {
         }
         for s in LinearSolver::ALL {
             assert_eq!(s.name().parse::<LinearSolver>().unwrap(), *s);
+        }
+        for r in RelaxationPreset::ALL {
+            assert_eq!(r.name().parse::<RelaxationPreset>().unwrap(), *r);
+            assert_eq!(RelaxationPreset::of(&r.relaxation()), Some(*r));
         }
         for p in PinMethod::ALL {
             assert_eq!(p.name().parse::<PinMethod>().unwrap(), *p);
@@ -717,6 +805,7 @@ mod tests {
             linear_solver: Some(LinearSolver::Jacobi),
             iterations: Some(7),
             tolerance: Some(1e-6),
+            relaxation: None,
         })
         .unwrap();
         assert_eq!(s.linearized.beta, 0.5);

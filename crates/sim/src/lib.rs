@@ -43,8 +43,8 @@ pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;
 pub use implicit::RateSource;
 pub use integrator::{
-    parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, Settings,
-    SolverOptions, UnknownPinMethod,
+    parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, RelaxationPreset,
+    Settings, SolverOptions, UnknownPinMethod, UnknownRelaxation,
 };
 pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Scene, State};
 pub use simulation::{HalvingMemory, Simulation, Snapshot, StepReport, MAX_AUTO_SUBSTEPS};

@@ -21,8 +21,11 @@ pub struct BenchArgs {
     pub scene: String,
     /// Solver and settings, repeatable: pd:1,2,5 (iterations), pd-tol:1e-3, newton:1,2,3
     /// (iterations), newton-tol:1e-4, cg:10 and cg-tol:1e-2 (linearised step, CG), jacobi:10 and
-    /// jacobi-tol:1e-2 (linearised step, block Jacobi), linearized-cg, linearized-jacobi. A name
-    /// alone takes its default settings. Default: pd, newton, newton-tol, cg-tol, jacobi,
+    /// jacobi-tol:1e-2 (linearised step, block Jacobi), linearized-cg, linearized-jacobi,
+    /// lbfgs:20,50 and lbfgs-tol:1e-6 (L-BFGS on PD's factor), chebyshev:10,50 (Chebyshev PD),
+    /// newton-cg:2,5 and newton-cg-tol:1e-8 (inexact Newton, PCG), newton-relaxed:3 and
+    /// newton-relaxed-tol:1e-8 (Newton with the buckling relaxation). A name alone takes its
+    /// default settings. Default: pd, newton, newton-tol, cg-tol, jacobi,
     /// linearized-cg (with --sweep: pd:10, newton-tol:1e-8, linearized-cg).
     #[arg(long = "solver", value_name = "SPEC")]
     pub solvers: Vec<String>,

@@ -77,6 +77,9 @@ pub struct SolverSettingsRecord {
     /// Relative tolerance (linear residual, Newton gradient, PD position change).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+    /// Newton's relaxation preset: `none` or `buckling` (absent for other settings).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relaxation: Option<String>,
 }
 
 /// What a step's `solver_residual` measures: Newton's relative gradient (unit `1`), projective
