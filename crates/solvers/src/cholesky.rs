@@ -451,6 +451,17 @@ impl SparseCholesky {
         Ok(())
     }
 
+    /// The LLᵀ factor laid out for the split solve of interleaved right-hand sides
+    /// ([`crate::forest_solve`]); `None` for a supernodal factor or without an LLᵀ factorisation.
+    pub(crate) fn forest_solve<const D: usize>(
+        &self,
+    ) -> Option<crate::forest_solve::ForestSolve<D>> {
+        if self.factored != Stored::Llt {
+            return None;
+        }
+        crate::forest_solve::ForestSolve::new(&self.symbolic, &self.factor)
+    }
+
     /// Solve A X = B in place for the columns of `rhs` (n × k, k ≤ 3 without allocating; wider
     /// right-hand sides are solved three columns at a time).
     ///

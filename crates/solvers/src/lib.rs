@@ -43,6 +43,7 @@ pub mod backward_euler;
 pub mod cg;
 pub mod chebyshev;
 pub mod cholesky;
+mod forest_solve;
 pub mod jacobi;
 pub mod lbfgs;
 pub mod newton;

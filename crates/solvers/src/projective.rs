@@ -17,7 +17,10 @@ use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 use crate::backward_euler::spring_energy_change;
-use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
+use crate::cholesky::{
+    CholeskyError, CholeskyParams, FactorKind, SparseCholesky, SPLIT_MIN_FACTOR,
+};
+use crate::forest_solve::ForestSolve;
 use crate::operator::Preconditioner;
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
@@ -121,6 +124,10 @@ pub struct ProjectiveDynamics<const D: usize> {
     d: Vec<SVector<f64, D>>,
     rhs: Vec<SVector<f64, D>>,
     columns: Vec<f64>,
+    /// The factor laid out for the split solve of the D coordinates (simplicial factors), and
+    /// the right-hand sides in its order.
+    forest: Option<ForestSolve<D>>,
+    ordered: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> ProjectiveDynamics<D> {
@@ -172,6 +179,8 @@ impl<const D: usize> ProjectiveDynamics<D> {
                 .collect(),
             rhs: vec![SVector::zeros(); n_free],
             columns: vec![0.0; D * n_free],
+            forest: None,
+            ordered: Vec::new(),
         };
         pd.refactor(springs, masses, h)?;
         Ok(pd)
@@ -206,7 +215,20 @@ impl<const D: usize> ProjectiveDynamics<D> {
         self.h = h;
         self.pattern
             .system_into(springs, masses, h, &mut self.values);
-        self.cholesky.factorize(self.pattern.matrix(&self.values))
+        self.forest = None;
+        self.cholesky.factorize(self.pattern.matrix(&self.values))?;
+        self.forest = self.cholesky.forest_solve();
+        let rows = self.forest.as_ref().map_or(0, ForestSolve::dim);
+        self.ordered.resize(rows, SVector::zeros());
+        Ok(())
+    }
+
+    /// Whether the split solve runs its two bins on two threads: in parallel mode, for factors
+    /// large enough to pay for the fork ([`SPLIT_MIN_FACTOR`]).
+    fn split_threads(&self) -> bool {
+        self.params.parallel
+            && self.params.cholesky.solve_threads > 1
+            && self.cholesky.factor_nnz() >= SPLIT_MIN_FACTOR
     }
 
     /// Time of the last numeric factorisation (amortised over every step until the next refactor).
@@ -342,23 +364,40 @@ impl<const D: usize> ProjectiveDynamics<D> {
         local_step(springs, x, &mut self.d, self.params.parallel);
         self.pattern
             .rhs_into(springs, &self.d, y, x, &self.masses, self.h, &mut self.rhs);
-        for (f, r) in self.rhs.iter().enumerate() {
-            for a in 0..D {
-                self.columns[a * n_free + f] = r[a];
-            }
-        }
-        self.cholesky
-            .solve_in_place(MatMut::from_column_major_slice_mut(
-                &mut self.columns,
-                n_free,
-                D,
-            ));
+        let threads = self.split_threads();
+        let free_vertices = self.pattern.free_dofs().free_vertices();
         let mut change: f64 = 0.0;
-        for (f, &vertex) in self.pattern.free_dofs().free_vertices().iter().enumerate() {
-            let new = SVector::<f64, D>::from_fn(|a, _| self.columns[a * n_free + f]);
-            change = change.max((new - x[vertex as usize]).amax());
-            x[vertex as usize] = new;
-            *largest_displacement = largest_displacement.max((new - y[vertex as usize]).amax());
+        let mut update = |vertex: usize, new: SVector<f64, D>| {
+            change = change.max((new - x[vertex]).amax());
+            x[vertex] = new;
+            *largest_displacement = largest_displacement.max((new - y[vertex]).amax());
+        };
+        if let Some(forest) = &mut self.forest {
+            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
+                *o = self.rhs[f as usize];
+            }
+            forest.solve_ordered(&mut self.ordered, threads);
+            for (new, &f) in self.ordered.iter().zip(forest.order()) {
+                update(free_vertices[f as usize] as usize, *new);
+            }
+        } else {
+            for (f, r) in self.rhs.iter().enumerate() {
+                for a in 0..D {
+                    self.columns[a * n_free + f] = r[a];
+                }
+            }
+            self.cholesky
+                .solve_in_place(MatMut::from_column_major_slice_mut(
+                    &mut self.columns,
+                    n_free,
+                    D,
+                ));
+            for (f, &vertex) in free_vertices.iter().enumerate() {
+                update(
+                    vertex as usize,
+                    SVector::<f64, D>::from_fn(|a, _| self.columns[a * n_free + f]),
+                );
+            }
         }
         change
     }
@@ -379,6 +418,19 @@ impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
         let n_free = self.pattern.free_dofs().free_count();
         assert_eq!(r.len(), D * n_free, "one value per free DOF");
         assert_eq!(z.len(), D * n_free, "one value per free DOF");
+        let threads = self.split_threads();
+        if let Some(forest) = &mut self.forest {
+            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
+                let f = f as usize;
+                *o = SVector::from_column_slice(&r[D * f..D * f + D]);
+            }
+            forest.solve_ordered(&mut self.ordered, threads);
+            for (o, &f) in self.ordered.iter().zip(forest.order()) {
+                let f = f as usize;
+                z[D * f..D * f + D].copy_from_slice(o.as_slice());
+            }
+            return;
+        }
         for f in 0..n_free {
             for a in 0..D {
                 self.columns[a * n_free + f] = r[D * f + a];
