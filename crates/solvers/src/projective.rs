@@ -69,8 +69,12 @@ pub struct PdParams {
     /// Evaluate Φ after every iteration (one extra pass over springs and vertices) for the report.
     /// Default false: benchmarks measure the bare iteration.
     pub record_objective: bool,
-    /// Run the local step and the Φ evaluation in parallel (same bits either way; the right-hand
-    /// side always goes parallel above 8,192 springs, with the same result). Default true.
+    /// Run the local step, the Φ evaluation and the solve on two threads (same bits either way; the
+    /// right-hand side always goes parallel above 8,192 springs, with the same result). A
+    /// simplicial factor (up to 50,000 unknowns, [`ProjectiveDynamics::factor_kind_for`]) is solved
+    /// for all D coordinates in one pass, split along its elimination tree into two halves that run
+    /// on two threads when it has at least [`SPLIT_MIN_FACTOR`] stored values; a supernodal one by
+    /// faer, its columns split over [`CholeskyParams::solve_threads`]. Default true.
     pub parallel: bool,
     /// Factorisation settings. [`FactorKind::Auto`] picks by size for the solve
     /// ([`ProjectiveDynamics::factor_kind_for`]).
@@ -84,8 +88,8 @@ impl Default for PdParams {
             tolerance: 0.0,
             record_objective: false,
             parallel: true,
-            // The three columns split over two threads (the same bits as serial; 1.15× on
-            // cloth-160's solve): `parallel: false` solves them on one.
+            // A supernodal factor's columns split over two threads (the same bits as serial;
+            // 1.28× on cloth-320's solve): `parallel: false` solves them on one.
             cholesky: CholeskyParams {
                 solve_threads: 2,
                 ..CholeskyParams::default()
