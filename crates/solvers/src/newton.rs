@@ -232,10 +232,11 @@ impl Relaxation {
     /// The relaxation stack tuned for buckling cloth (every field's documentation gives its value
     /// here): sweeps, focused sweeps and the nonlinear elimination over patches. Opt-in: it pays
     /// where a step's error sits in a fold of a crushed or buckling sheet (SCENES.md's crushed
-    /// cloth-40 at 3 frames: 5.4 s against 24.7 s for plain Newton, release build), and costs more
-    /// than it saves elsewhere (cloth-80's speed-vs-error step 1.30 s against 0.77 s; cloth-10 to
-    /// 80, beams and the other seven hard cases are as fast or faster without it). Its patches are
-    /// built the first time the elimination runs, not before.
+    /// cloth-40 at 3 frames: 5.4 s against 24.7 s for plain Newton, release build; a cloth-160 run
+    /// of 11 frames: 168 s against 337 s), and costs more than it saves elsewhere (cloth-80's
+    /// speed-vs-error step 1.30 s against 0.77 s, a cloth-20 run 1.6× and a cloth-80 run 1.1×
+    /// slower; beams and the other seven hard cases are as fast or faster without it). Its patches
+    /// are built the first time the elimination runs, not before.
     pub const BUCKLING: Relaxation = Relaxation {
         sweeps: 10,
         block_iterations: 3,
