@@ -5,6 +5,7 @@ use crate::output;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::str::FromStr;
 use std::time::Instant;
 
 use crate::mesh::io::{save_obj, save_vtk_with_data, Frame, FrameData};
@@ -325,26 +326,8 @@ fn run_setup<const D: usize>(
             reason: e.to_string(),
         })?;
     }
-    let linear_solver = match &args.linear_solver {
-        Some(name) => Some(
-            name.parse::<LinearSolver>()
-                .map_err(|e| CliError::Argument {
-                    name: "linear-solver",
-                    reason: e.to_string(),
-                })?,
-        ),
-        None => None,
-    };
-    let relaxation = match &args.relaxation {
-        Some(name) => Some(
-            name.parse::<RelaxationPreset>()
-                .map_err(|e| CliError::Argument {
-                    name: "relaxation",
-                    reason: e.to_string(),
-                })?,
-        ),
-        None => None,
-    };
+    let linear_solver = parse_flag::<LinearSolver>(&args.linear_solver, "linear-solver")?;
+    let relaxation = parse_flag::<RelaxationPreset>(&args.relaxation, "relaxation")?;
     // One flag at a time, so that an error names its flag.
     for (name, options) in [
         (
@@ -661,6 +644,22 @@ fn run_setup<const D: usize>(
 }
 
 /// `hooke run` of a fluid scene: the spring integrators' options are refused.
+/// The value of an optional flag parsed as `T`, or a [`CliError::Argument`] naming the flag.
+fn parse_flag<T: FromStr>(value: &Option<String>, name: &'static str) -> Result<Option<T>, CliError>
+where
+    T::Err: std::fmt::Display,
+{
+    value
+        .as_deref()
+        .map(|text| {
+            text.parse::<T>().map_err(|e| CliError::Argument {
+                name,
+                reason: e.to_string(),
+            })
+        })
+        .transpose()
+}
+
 fn run_fluid(args: &RunArgs) -> Result<(), CliError> {
     let not_for_fluid = [
         ("beta", args.beta.is_some()),
