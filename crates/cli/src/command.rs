@@ -320,11 +320,8 @@ fn run_setup<const D: usize>(
     resume: Option<Checkpoint>,
     preview_positions: impl for<'a> Fn(&'a [SVector<f64, D>]) -> PreviewPositions<'a>,
 ) -> Result<(), CliError> {
-    if let Some(name) = &args.integrator {
-        setup.settings.integrator = name.parse::<Integrator>().map_err(|e| CliError::Argument {
-            name: "integrator",
-            reason: e.to_string(),
-        })?;
+    if let Some(integrator) = parse_flag::<Integrator>(&args.integrator, "integrator")? {
+        setup.settings.integrator = integrator;
     }
     let linear_solver = parse_flag::<LinearSolver>(&args.linear_solver, "linear-solver")?;
     let relaxation = parse_flag::<RelaxationPreset>(&args.relaxation, "relaxation")?;
@@ -374,11 +371,8 @@ fn run_setup<const D: usize>(
                 reason: e.to_string(),
             })?;
     }
-    if let Some(name) = &args.pin_method {
-        setup.settings.pins = name.parse::<PinMethod>().map_err(|e| CliError::Argument {
-            name: "pin-method",
-            reason: e.to_string(),
-        })?;
+    if let Some(pins) = parse_flag::<PinMethod>(&args.pin_method, "pin-method")? {
+        setup.settings.pins = pins;
     }
     if let Some(dt) = args.dt {
         setup.scene = setup.scene.with_time_step(dt)?;

@@ -462,6 +462,12 @@ impl SparseCholesky {
         crate::forest_solve::ForestSolve::new(&self.symbolic, &self.factor)
     }
 
+    /// The stored values of the LLᵀ factor (faer's storage for the analysed pattern), or `None`
+    /// without an LLᵀ factorisation.
+    pub(crate) fn llt_values(&self) -> Option<&[f64]> {
+        (self.factored == Stored::Llt).then_some(&self.factor[..])
+    }
+
     /// Solve A X = B in place for the columns of `rhs` (n × k, k ≤ 3 without allocating; wider
     /// right-hand sides are solved three columns at a time).
     ///

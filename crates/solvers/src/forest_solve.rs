@@ -16,11 +16,10 @@
 //!
 //! Each right-hand side is a row of D values (one vertex's coordinates): one pass over L serves
 //! all D columns, and a gather accumulates in registers instead of scattering into memory. The
-//! columns are stored last first, so the backward pass streams through memory forwards (stored in
-//! the factor's order, it ran 3× slower on cloth-160). The arithmetic does not depend on whether
-//! the bins run on one thread or two: the same bits. On cloth-160's PD matrix (1.87 M stored
-//! values) the three-column solve takes 3.4 ms on one thread and 2.7 ms on two, against 4.1 ms for
-//! faer's simplicial solve on one (best of 40; `benches/results/issue15-pd-speed.md`).
+//! columns are stored last first, so that the backward pass streams through memory forwards. The
+//! arithmetic does not depend on whether the bins run on one thread or two: the same bits. The
+//! layout depends on the pattern only: it is made once and refilled with each factorisation's
+//! values. Measurements: `benches/results/issue15-pd-speed.md`.
 
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 use nalgebra::SVector;
@@ -28,6 +27,16 @@ use nalgebra::SVector;
 /// The share of the solve's work the top S may reach before the search for a deeper cut stops:
 /// S is solved on one thread, so a cut that deep could not pay.
 const MAX_TOP_SHARE: f64 = 0.25;
+
+/// The smallest factor (stored values) whose split solve runs its two bins on two threads:
+/// below it the fork costs more than the second thread saves. Measured with `hooke bench --sweep
+/// N=20,40,80,160 --solver pd:10` (three runs each, 2 cores): two threads are slower on cloth-20
+/// (9,956 values; 0.92–0.96 ms against 0.35–0.51 ms for pd:10) and faster from cloth-40 (61,169
+/// values; 1.7–2.7 against 3.4–3.9 ms) and cloth-80 (8.0–10.7 against 15.8–20.3 ms) up.
+pub(crate) const SPLIT_MIN_VALUES: usize = 32_768;
+
+/// Marks a diagonal entry in [`ForestSolve`]'s slots (and bounds the indices it can address).
+const DIAGONAL: u32 = u32::MAX;
 
 /// A simplicial LLᵀ factor laid out for the split solve (see the module documentation).
 #[derive(Clone, Debug)]
@@ -52,6 +61,9 @@ pub(crate) struct ForestSolve<const D: usize> {
     row_mid: Vec<[u32; 2]>,
     /// 1 / L_kk.
     inv_diag: Vec<f64>,
+    /// Where each of faer's stored values goes: its slot in the rows and in the columns, or
+    /// [`DIAGONAL`] and its position for a diagonal entry.
+    slots: Vec<[u32; 2]>,
     /// Each bin's part of the sums of S's rows, Σ_{j in the bin} L_ij z_j, computed by the bin's
     /// thread after its forward substitution.
     partial: [Vec<SVector<f64, D>>; 2],
@@ -61,108 +73,102 @@ impl<const D: usize> ForestSolve<D> {
     /// Lay out the simplicial LLᵀ factor `values` of `symbolic`; `None` if the factor is
     /// supernodal or has more stored entries than 32-bit indices address.
     pub(crate) fn new(symbolic: &SymbolicCholesky<usize>, values: &[f64]) -> Option<Self> {
+        let mut forest = Self::layout(symbolic)?;
+        forest.refill(values);
+        Some(forest)
+    }
+
+    /// The layout of `symbolic`'s factor, its values still to be filled: the cut, the solve's
+    /// order, both storages of L and where each of faer's stored entries goes. Depends on the
+    /// pattern only, so it is made once and [`ForestSolve::refill`]ed for each factorisation.
+    fn layout(symbolic: &SymbolicCholesky<usize>) -> Option<Self> {
         let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
             return None;
         };
         let n = symbolic.nrows();
-        if values.len() >= u32::MAX as usize || n >= u32::MAX as usize {
+        let (l_ptr, l_row) = (s.col_ptr(), s.row_idx());
+        if l_row.len() >= DIAGONAL as usize || n >= DIAGONAL as usize {
             return None;
         }
-        let (l_ptr, l_row) = (s.col_ptr(), s.row_idx());
         // The elimination tree: the parent of column j is its first off-diagonal row.
-        let mut parent = vec![usize::MAX; n];
-        let mut weight = vec![0.0f64; n];
-        for j in 0..n {
-            let rows = &l_row[l_ptr[j]..l_ptr[j + 1]];
-            parent[j] = rows[1..].iter().copied().min().unwrap_or(usize::MAX);
-            weight[j] = rows.len() as f64;
-        }
-        let part = split_tree(&parent, &mut weight);
+        let parent: Vec<usize> = (0..n)
+            .map(|j| {
+                let rows = &l_row[l_ptr[j] + 1..l_ptr[j + 1]];
+                rows.iter().copied().min().unwrap_or(usize::MAX)
+            })
+            .collect();
+        let weight: Vec<u64> = (0..n).map(|j| (l_ptr[j + 1] - l_ptr[j]) as u64).collect();
+        let part = split_tree(&parent, &weight);
         // The solve's order: bin 0, bin 1, S, each in the factor's order.
         let mut position = vec![0u32; n];
+        let mut by_position = Vec::with_capacity(n);
         let mut bins = [0usize; 2];
-        let mut next = 0u32;
         for p in 0..3u8 {
-            for k in 0..n {
-                if part[k] == p {
-                    position[k] = next;
-                    next += 1;
-                }
+            for k in (0..n).filter(|&k| part[k] == p) {
+                position[k] = by_position.len() as u32;
+                by_position.push(k);
             }
             if p < 2 {
-                bins[p as usize] = next as usize;
+                bins[p as usize] = by_position.len();
             }
         }
-        let fwd: Vec<usize> = match symbolic.perm() {
-            Some(perm) => perm.arrays().0.to_vec(),
-            None => (0..n).collect(),
+        let order: Vec<u32> = match symbolic.perm() {
+            Some(perm) => by_position
+                .iter()
+                .map(|&k| perm.arrays().0[k] as u32)
+                .collect(),
+            None => by_position.iter().map(|&k| k as u32).collect(),
         };
-        let mut order = vec![0u32; n];
-        for k in 0..n {
-            order[position[k] as usize] = fwd[k] as u32;
-        }
-        // Strictly lower entries (new row, new column, value): a topological renumbering keeps
-        // every row below its column.
-        let mut inv_diag = vec![0.0; n];
-        let mut row_count = vec![0u32; n + 1];
-        let mut col_count = vec![0u32; n + 1];
-        for j in 0..n {
-            let nj = position[j] as usize;
-            inv_diag[nj] = 1.0 / values[l_ptr[j]];
-            for &i in &l_row[l_ptr[j] + 1..l_ptr[j + 1]] {
-                row_count[position[i] as usize + 1] += 1;
-                col_count[nj] += 1;
-            }
-        }
+        // Strictly lower entries: a topological renumbering keeps every row below its column.
         // Rows by prefix sums; columns by suffix sums, so that the backward substitution, which
         // visits the columns from the last to the first, streams through memory forwards.
-        for k in 0..n {
-            row_count[k + 1] += row_count[k];
-        }
-        for k in (0..n).rev() {
-            col_count[k] += col_count[k + 1];
-        }
-        let off = col_count[0] as usize;
-        let mut row_col = vec![0u32; off];
-        let mut row_val = vec![0.0; off];
-        let mut col_row = vec![0u32; off];
-        let mut col_val = vec![0.0; off];
-        let mut row_fill = row_count.clone();
-        let mut col_fill: Vec<u32> = col_count[1..].to_vec();
-        // Columns in the new order, so that each row's entries come in increasing column order.
-        let mut by_position = vec![0usize; n];
-        for (k, &p) in position.iter().enumerate() {
-            by_position[p as usize] = k;
-        }
-        for (nj, &j) in by_position.iter().enumerate() {
-            let mut entries: Vec<(u32, f64)> = (l_ptr[j] + 1..l_ptr[j + 1])
-                .map(|e| (position[l_row[e]], values[e]))
-                .collect();
-            entries.sort_by_key(|&(i, _)| i);
-            for (i, v) in entries {
-                let r = &mut row_fill[i as usize];
-                row_col[*r as usize] = nj as u32;
-                row_val[*r as usize] = v;
-                *r += 1;
-                let c = &mut col_fill[nj];
-                col_row[*c as usize] = i;
-                col_val[*c as usize] = v;
-                *c += 1;
+        let mut row_ptr = vec![0u32; n + 1];
+        let mut col_ptr = vec![0u32; n + 1];
+        for j in 0..n {
+            for &i in &l_row[l_ptr[j] + 1..l_ptr[j + 1]] {
+                row_ptr[position[i] as usize + 1] += 1;
+                col_ptr[position[j] as usize] += 1;
             }
         }
-        // Each column's entries from the farthest row to the nearest: the nearest row was solved
-        // last, and entering it last lets a column's sum start before its neighbour is done.
+        for k in 0..n {
+            row_ptr[k + 1] += row_ptr[k];
+        }
+        for k in (0..n).rev() {
+            col_ptr[k] += col_ptr[k + 1];
+        }
+        let off = col_ptr[0] as usize;
+        let mut row_col = vec![0u32; off];
+        let mut col_row = vec![0u32; off];
+        let mut slots = vec![[DIAGONAL, 0]; l_row.len()];
+        let mut row_fill = row_ptr.clone();
+        // Each column's rows in decreasing order: its segment is filled from the end.
+        let mut col_fill = col_ptr[..n].to_vec();
+        let mut entries: Vec<(u32, usize)> = Vec::new();
+        // Columns in the new order, so that each row's entries come in increasing column order.
+        for (nj, &j) in by_position.iter().enumerate() {
+            slots[l_ptr[j]] = [DIAGONAL, nj as u32];
+            entries.clear();
+            entries.extend((l_ptr[j] + 1..l_ptr[j + 1]).map(|e| (position[l_row[e]], e)));
+            entries.sort_unstable();
+            for &(i, e) in &entries {
+                let r = &mut row_fill[i as usize];
+                row_col[*r as usize] = nj as u32;
+                let c = &mut col_fill[nj];
+                *c -= 1;
+                col_row[*c as usize] = i;
+                slots[e] = [*r, *c];
+                *r += 1;
+            }
+        }
         let col_mid = (0..n)
             .map(|j| {
-                let (from, to) = (col_count[j + 1] as usize, col_count[j] as usize);
-                col_row[from..to].reverse();
-                col_val[from..to].reverse();
+                let (from, to) = (col_ptr[j + 1] as usize, col_ptr[j] as usize);
                 (from + col_row[from..to].partition_point(|&i| (i as usize) >= bins[1])) as u32
             })
             .collect();
         let row_mid = (bins[1]..n)
             .map(|i| {
-                let (from, to) = (row_count[i] as usize, row_count[i + 1] as usize);
+                let (from, to) = (row_ptr[i] as usize, row_ptr[i + 1] as usize);
                 let first = |end: usize| {
                     (from + row_col[from..to].partition_point(|&j| (j as usize) < end)) as u32
                 };
@@ -171,19 +177,37 @@ impl<const D: usize> ForestSolve<D> {
             .collect();
         let top = n - bins[1];
         Some(ForestSolve {
-            row_mid,
-            partial: [vec![SVector::zeros(); top], vec![SVector::zeros(); top]],
             order,
-            col_mid,
             bins,
-            row_ptr: row_count,
+            row_ptr,
             row_col,
-            row_val,
-            col_ptr: col_count,
+            row_val: vec![0.0; off],
+            col_ptr,
             col_row,
-            col_val,
-            inv_diag,
+            col_val: vec![0.0; off],
+            col_mid,
+            row_mid,
+            inv_diag: vec![0.0; n],
+            slots,
+            partial: [vec![SVector::zeros(); top], vec![SVector::zeros(); top]],
         })
+    }
+
+    /// Take the values of a new factorisation on the same pattern (faer's simplicial storage,
+    /// as [`ForestSolve::new`] was given): O(stored values), no analysis.
+    ///
+    /// # Panics
+    /// If `values` is not of the layout's length.
+    pub(crate) fn refill(&mut self, values: &[f64]) {
+        assert_eq!(values.len(), self.slots.len(), "the factor's stored values");
+        for (&[r, c], &v) in self.slots.iter().zip(values) {
+            if r == DIAGONAL {
+                self.inv_diag[c as usize] = 1.0 / v;
+            } else {
+                self.row_val[r as usize] = v;
+                self.col_val[c as usize] = v;
+            }
+        }
     }
 
     /// The number of unknowns.
@@ -349,95 +373,83 @@ fn run_both(parallel: bool, a: impl FnOnce() + Send, b: impl FnOnce() + Send) {
     }
 }
 
-/// Cut the elimination forest `parent` (`usize::MAX` at roots; nodes weighted by `weight`, the
-/// work of their row and column) into bin 0, bin 1 (whole subtrees, dealt largest first to the
-/// lighter bin) and the top S (2), minimising the work of the heavier bin plus S. `weight` is
-/// turned into subtree weights. Returns each node's part.
-fn split_tree(parent: &[usize], weight: &mut [f64]) -> Vec<u8> {
+/// Cut the elimination forest `parent` (`usize::MAX` at roots; node k weighted by `weight[k]`,
+/// the stored entries of its column) into bin 0, bin 1 and the top S (part 2). S grows from the
+/// roots by cutting the heaviest hanging subtree's root, as long as that root has children and S
+/// holds at most [`MAX_TOP_SHARE`] of the work; the cut kept is the one whose critical path, S
+/// plus the lower bound max(heaviest subtree, half the hanging work) of the heavier bin, is
+/// least. Its hanging subtrees are then dealt largest first to the lighter bin. O(n log n).
+/// Returns each node's part.
+fn split_tree(parent: &[usize], weight: &[u64]) -> Vec<u8> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
     let n = parent.len();
-    // Children lists (parents come after their children in a factor's order).
-    let mut child_count = vec![0usize; n + 1];
+    // Children lists; parents come after their children in a factor's order.
+    let mut child_start = vec![0usize; n + 1];
     for &p in parent {
         if p != usize::MAX {
-            child_count[p + 1] += 1;
+            child_start[p + 1] += 1;
         }
     }
     for k in 0..n {
-        child_count[k + 1] += child_count[k];
+        child_start[k + 1] += child_start[k];
     }
-    let mut children = vec![0usize; child_count[n]];
-    let mut fill = child_count.clone();
+    let mut children = vec![0usize; child_start[n]];
+    let mut fill = child_start.clone();
     for (k, &p) in parent.iter().enumerate() {
         if p != usize::MAX {
             children[fill[p]] = k;
             fill[p] += 1;
         }
     }
+    let children_of = |k: usize| &children[child_start[k]..child_start[k + 1]];
+    let mut subtree = weight.to_vec();
     for k in 0..n {
         if parent[k] != usize::MAX {
-            weight[parent[k]] += weight[k];
+            subtree[parent[k]] += subtree[k];
         }
     }
-    let total: f64 = (0..n)
-        .filter(|&k| parent[k] == usize::MAX)
-        .map(|k| weight[k])
-        .sum();
-    // Subtrees still to deal (a heap would do; the lists are short).
-    let mut hanging: Vec<usize> = (0..n).filter(|&k| parent[k] == usize::MAX).collect();
+    let roots = || (0..n).filter(|&k| parent[k] == usize::MAX);
+    let total: u64 = roots().map(|k| subtree[k]).sum();
+    // Hanging subtrees, heaviest first (ties: the lower index).
+    let mut hanging: BinaryHeap<(u64, Reverse<usize>)> =
+        roots().map(|k| (subtree[k], Reverse(k))).collect();
     let mut top: Vec<usize> = Vec::new();
-    let mut top_weight = 0.0;
-    let mut best: Option<(f64, usize)> = None; // (cost, how many nodes of `top`)
-    let deal = |hanging: &mut Vec<usize>| -> (f64, Vec<u8>) {
-        hanging.sort_by(|&a, &b| weight[b].total_cmp(&weight[a]).then(a.cmp(&b)));
-        let mut bins = [0.0f64; 2];
-        let mut which = Vec::with_capacity(hanging.len());
-        for &k in hanging.iter() {
-            let b = usize::from(bins[1] < bins[0]);
-            bins[b] += weight[k];
-            which.push(b as u8);
+    let mut top_weight = 0u64;
+    let (mut best_cost, mut best_cut) = (u64::MAX, 0usize);
+    while let Some(&(heaviest, Reverse(root))) = hanging.peek() {
+        let cost = top_weight + heaviest.max((total - top_weight).div_ceil(2));
+        if cost < best_cost {
+            (best_cost, best_cut) = (cost, top.len());
         }
-        (bins[0].max(bins[1]), which)
-    };
-    while !hanging.is_empty() && top_weight <= MAX_TOP_SHARE * total {
-        let (heavier, _) = deal(&mut hanging);
-        let cost = heavier + top_weight;
-        if best.is_none_or(|(c, _)| cost < c) {
-            best = Some((cost, top.len()));
+        if children_of(root).is_empty() || top_weight as f64 > MAX_TOP_SHARE * total as f64 {
+            break;
         }
-        // Cut the heaviest subtree's root into S.
-        let root = hanging.remove(0);
+        hanging.pop();
         top.push(root);
-        let own = weight[root]
-            - children[child_count[root]..child_count[root + 1]]
-                .iter()
-                .map(|&c| weight[c])
-                .sum::<f64>();
-        top_weight += own;
-        hanging.extend_from_slice(&children[child_count[root]..child_count[root + 1]]);
+        top_weight += weight[root];
+        hanging.extend(children_of(root).iter().map(|&c| (subtree[c], Reverse(c))));
     }
-    // Replay the best cut.
-    let cut = best.map_or(0, |(_, t)| t);
+    // S is the first `best_cut` roots cut; the subtrees hanging from it (or roots outside it)
+    // are dealt largest first to the lighter bin.
     let mut part = vec![2u8; n];
-    let mut hanging: Vec<usize> = (0..n).filter(|&k| parent[k] == usize::MAX).collect();
-    for &root in &top[..cut] {
-        let at = hanging
-            .iter()
-            .position(|&k| k == root)
-            .expect("cut in order");
-        hanging.remove(at);
-        hanging.extend_from_slice(&children[child_count[root]..child_count[root + 1]]);
+    let mut in_top = vec![false; n];
+    for &k in &top[..best_cut] {
+        in_top[k] = true;
     }
-    let (_, which) = deal(&mut hanging);
-    // Each subtree's nodes: a node's part is its nearest dealt ancestor's (descendants come first
-    // in the factor's order, so walk from the top down: reverse order).
-    let mut dealt = vec![u8::MAX; n];
-    for (&k, &b) in hanging.iter().zip(&which) {
-        dealt[k] = b;
+    let mut dealt: Vec<usize> = (0..n)
+        .filter(|&k| !in_top[k] && (parent[k] == usize::MAX || in_top[parent[k]]))
+        .collect();
+    dealt.sort_by_key(|&k| (Reverse(subtree[k]), k));
+    let mut bins = [0u64; 2];
+    for &k in &dealt {
+        let b = usize::from(bins[1] < bins[0]);
+        bins[b] += subtree[k];
+        part[k] = b as u8;
     }
+    // Every other node below S takes its parent's part (parents first: reverse order).
     for k in (0..n).rev() {
-        if dealt[k] != u8::MAX {
-            part[k] = dealt[k];
-        } else if parent[k] != usize::MAX && part[parent[k]] < 2 {
+        if !in_top[k] && part[k] == 2 && parent[k] != usize::MAX {
             part[k] = part[parent[k]];
         }
     }
@@ -455,11 +467,16 @@ mod tests {
 
     /// PD's matrix K (M + h² L) Kᵀ of cloth-n (pins 0 and n − 1), factored simplicial LLᵀ.
     fn cloth_factor(n: usize) -> SparseCholesky {
+        cloth_factor_at(n, 1.0 / 30.0)
+    }
+
+    /// The same at time step `h`.
+    fn cloth_factor_at(n: usize, h: f64) -> SparseCholesky {
         let mesh = generators::cloth(n, 1e3).unwrap();
         let free = FreeDofs::new(mesh.vertex_count(), &[0, n as u32 - 1]).unwrap();
         let pattern = LaplacianPattern::new(mesh.vertex_count(), mesh.springs(), Some(&free));
         let mut values = pattern.new_values();
-        pattern.system_into(mesh.springs(), mesh.masses(), 1.0 / 30.0, &mut values);
+        pattern.system_into(mesh.springs(), mesh.masses(), h, &mut values);
         let mut cholesky = SparseCholesky::analyze(
             pattern.symbolic(),
             CholeskyParams {
@@ -548,14 +565,34 @@ mod tests {
         }
     }
 
+    /// A layout refilled with another factorisation of the same pattern solves as a layout made
+    /// for it: the same bits.
+    #[test]
+    fn a_refilled_layout_is_a_new_one() {
+        let mut refilled = cloth_factor(20).forest_solve::<3>().unwrap();
+        let other = cloth_factor_at(20, 1.0 / 7.0);
+        refilled.refill(other.llt_values().unwrap());
+        let mut fresh = other.forest_solve::<3>().unwrap();
+        let b: Vec<Vector3<f64>> = (0..fresh.dim())
+            .map(|i| Vector3::new(i as f64, 1.0, -0.5 * i as f64))
+            .collect();
+        let (mut x, mut y) = (b.clone(), b);
+        refilled.solve_ordered(&mut x, false);
+        fresh.solve_ordered(&mut y, false);
+        assert!(x
+            .iter()
+            .zip(&y)
+            .all(|(a, b)| a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits())));
+        assert_ne!(x[0], Vector3::new(0.0, 1.0, 0.0), "the solve did nothing");
+    }
+
     /// A tree that is a single chain has nothing to split: everything may end in one part, and
     /// the solve is still right (cloth-3 above); a forest of two equal trees splits exactly.
     #[test]
     fn split_tree_deals_a_forest_of_two_trees_to_two_bins() {
         // Two chains 0 → 1 → 2 and 3 → 4 → 5.
         let parent = [1, 2, usize::MAX, 4, 5, usize::MAX];
-        let mut weight = [1.0; 6];
-        let part = split_tree(&parent, &mut weight);
+        let part = split_tree(&parent, &[1; 6]);
         assert_eq!(&part[..3], &[part[0]; 3]);
         assert_eq!(&part[3..], &[part[3]; 3]);
         assert_ne!(part[0], part[3]);

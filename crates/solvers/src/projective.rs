@@ -17,10 +17,8 @@ use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 use crate::backward_euler::spring_energy_change;
-use crate::cholesky::{
-    CholeskyError, CholeskyParams, FactorKind, SparseCholesky, SPLIT_MIN_FACTOR,
-};
-use crate::forest_solve::ForestSolve;
+use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
+use crate::forest_solve::{self, ForestSolve};
 use crate::operator::Preconditioner;
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
@@ -73,8 +71,8 @@ pub struct PdParams {
     /// right-hand side always goes parallel above 8,192 springs, with the same result). A
     /// simplicial factor (up to 50,000 unknowns, [`ProjectiveDynamics::factor_kind_for`]) is solved
     /// for all D coordinates in one pass, split along its elimination tree into two halves that run
-    /// on two threads when it has at least [`SPLIT_MIN_FACTOR`] stored values; a supernodal one by
-    /// faer, its columns split over [`CholeskyParams::solve_threads`]. Default true.
+    /// on two threads when it has at least 32,768 stored values; a supernodal one by faer, its
+    /// columns split over [`CholeskyParams::solve_threads`]. Default true.
     pub parallel: bool,
     /// Factorisation settings. [`FactorKind::Auto`] picks by size for the solve
     /// ([`ProjectiveDynamics::factor_kind_for`]).
@@ -219,20 +217,28 @@ impl<const D: usize> ProjectiveDynamics<D> {
         self.h = h;
         self.pattern
             .system_into(springs, masses, h, &mut self.values);
-        self.forest = None;
+        // The layout is kept across factorisations (the pattern does not change), but only a
+        // successful one refills it: after a failure no stale factor is used.
+        let layout = self.forest.take();
         self.cholesky.factorize(self.pattern.matrix(&self.values))?;
-        self.forest = self.cholesky.forest_solve();
+        self.forest = match (layout, self.cholesky.llt_values()) {
+            (Some(mut forest), Some(values)) => {
+                forest.refill(values);
+                Some(forest)
+            }
+            _ => self.cholesky.forest_solve(),
+        };
         let rows = self.forest.as_ref().map_or(0, ForestSolve::dim);
         self.ordered.resize(rows, SVector::zeros());
         Ok(())
     }
 
     /// Whether the split solve runs its two bins on two threads: in parallel mode, for factors
-    /// large enough to pay for the fork ([`SPLIT_MIN_FACTOR`]).
+    /// large enough to pay for the fork ([`forest_solve::SPLIT_MIN_VALUES`]).
     fn split_threads(&self) -> bool {
         self.params.parallel
             && self.params.cholesky.solve_threads > 1
-            && self.cholesky.factor_nnz() >= SPLIT_MIN_FACTOR
+            && self.cholesky.factor_nnz() >= forest_solve::SPLIT_MIN_VALUES
     }
 
     /// Time of the last numeric factorisation (amortised over every step until the next refactor).
