@@ -72,6 +72,22 @@ pub enum Shape<const D: usize> {
     },
 }
 
+impl<const D: usize> Shape<D> {
+    /// The signed distance (m) of `x` from the surface: positive on the allowed side, negative
+    /// inside the obstacle (see [`Contact::signed_distance`]). A plane's normal must be unit length
+    /// ([`Contact::validated`] normalises it).
+    #[inline]
+    pub fn signed_distance(&self, x: &SVector<f64, D>) -> f64 {
+        match self {
+            Shape::Box { min, max } => (0..D)
+                .map(|a| (x[a] - min[a]).min(max[a] - x[a]))
+                .fold(f64::INFINITY, f64::min),
+            Shape::Plane { point, normal } => (x - point).dot(normal),
+            Shape::Sphere { center, radius } => (x - center).norm() - radius,
+        }
+    }
+}
+
 /// A contact constraint: a shape and a friction coefficient.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Contact<const D: usize> {
@@ -129,6 +145,15 @@ impl<const D: usize> Contact<D> {
             }
         }
         Ok(self)
+    }
+
+    /// The signed distance (m) of `x` from the obstacle's surface: positive on the allowed side,
+    /// zero on the surface, negative inside the obstacle. For a box, the distance to the nearest
+    /// wall, measured inwards; for a plane, along its (normalised) normal; for a sphere,
+    /// |x − c| − r.
+    #[inline]
+    pub fn signed_distance(&self, x: &SVector<f64, D>) -> f64 {
+        self.shape.signed_distance(x)
     }
 
     /// Project one vertex: returns true if it was in contact.
