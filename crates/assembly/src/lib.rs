@@ -5,13 +5,15 @@
 //! deterministic, the sparse Hessian of the implicit Euler objective in faer's CSC format with a
 //! fixed pattern refilled in place ([`hessian`]), the fixed-vertex reduction ([`FreeDofs`]), the
 //! projective dynamics matrices with their Kronecker structure kept ([`pd`]), pinned vertices held
-//! by counter-forces on all DOFs instead ([`CounterForce`]), and central finite differences to check
-//! them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
+//! by counter-forces on all DOFs instead ([`CounterForce`]), contact with static obstacles for the
+//! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`contact`]), and
+//! central finite differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
 //! `interop` converts the assembled matrices to those crates' CSC types.
 //!
 //! Units: metres, kilograms, seconds; stiffness in N/m, energy in J, force in N.
 #![deny(missing_docs)]
 
+pub mod contact;
 mod counter_force;
 mod dofs;
 mod error;
