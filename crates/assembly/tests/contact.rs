@@ -589,10 +589,9 @@ fn check_friction_energy_change<const D: usize>(
         assert!((change - direct).abs() <= tol, "{change} vs {direct}");
     } else {
         // Tiny steps (|δ| ≤ 1e-3 y): against the quadratic model ∇E·δ + ½δᵀHδ, whose truncation
-        // is bounded by |δ|³ times the third derivative, ≲ μλ(2/ε² + 3/y²)|δ|³ (for steps not
-        // crossing ε; a crossing makes the model's error second order in the crossing part, still
-        // within this bound at |δ| ≤ 1e-3 y... only if |y − ε| ≫ |δ|, hence the skip); rounding a
-        // few ε of |∇E||δ| and of the model's terms.
+        // is bounded by |δ|³ times the third derivative, ≲ μλ(2/ε² + 3/y²)|δ|³, for steps that do
+        // not cross y = ε (f₀''' jumps there; such steps are skipped); rounding a few ε of
+        // |∇E||δ| and of the model's terms.
         if (y - eps).abs() <= 2.0 * delta.norm() {
             return;
         }
