@@ -21,6 +21,7 @@
 //! `HOOKE_BENCH_SCENES=cloth-40,beam-8 cargo bench --bench solver_kernels`. Sample sizes are
 //! small on purpose.
 
+use hooke_solvers::Convergence;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -357,6 +358,7 @@ fn scene(c: &mut Criterion, case: &Case) {
     let mut newton = Newton::new(
         objective.pattern(),
         NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 0.0,
             max_iterations: 1,
             ..NewtonParams::default()

@@ -3,12 +3,14 @@
 use hooke::sim::scenes::{self, AnySetup};
 use hooke::sim::{Integrator, Pins, Scene, Settings, SimError, Simulation, State};
 use hooke::solvers::{NewtonParams, PdParams};
+use hooke_solvers::Convergence;
 use nalgebra::Vector3;
 
 fn settings(integrator: Integrator) -> Settings {
     Settings {
         integrator,
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-10,
             ..Default::default()
         },

@@ -3,6 +3,7 @@
 
 use hooke::sim::{Damping, ExternalForce, Integrator, Scene, Settings, SimError, Simulation};
 use hooke::solvers::{NewtonParams, PdParams};
+use hooke_solvers::Convergence;
 use nalgebra::Vector3;
 
 type V = Vector3<f64>;
@@ -11,6 +12,7 @@ fn settings(integrator: Integrator) -> Settings {
     Settings {
         integrator,
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-12,
             max_iterations: 200,
             ..Default::default()

@@ -9,6 +9,7 @@ use hooke::solvers::{
     BackwardEulerStep, CholeskyParams, NewtonParams, NewtonProblem, PdParams, SparseCholesky,
     StopReason,
 };
+use hooke_solvers::Convergence;
 use nalgebra::Vector3;
 
 fn norm(a: &[Vector3<f64>]) -> f64 {
@@ -301,6 +302,7 @@ fn run_for(integrator: &str, h: f64, duration: f64) -> State<3> {
             // (relative gradient 1.33e-5)"), the round-off floor of Φ, instead of stopping as
             // Stagnated.
             newton: NewtonParams {
+                convergence: Convergence::RelativeGradient,
                 tolerance: 1e-4,
                 ..NewtonParams::default()
             },
@@ -467,6 +469,7 @@ fn backward_euler_never_increases_the_energy_of_a_free_undamped_solid() {
         Settings {
             integrator: Integrator::Newton,
             newton: NewtonParams {
+                convergence: Convergence::RelativeGradient,
                 tolerance: 1e-10,
                 max_iterations: 200,
                 ..NewtonParams::default()

@@ -4,6 +4,7 @@
 use hooke::mesh::generators;
 use hooke::sim::{ExternalForce, Integrator, Keyframe, PinPath, Pins, Scene, Settings, Simulation};
 use hooke::solvers::{NewtonParams, PdParams};
+use hooke_solvers::Convergence;
 use nalgebra::Vector3;
 
 const N: usize = 10;
@@ -13,6 +14,7 @@ fn settings(integrator: Integrator) -> Settings {
         integrator,
         // Explicit methods take their automatic substeps (forward Euler needs ~10³ a frame here).
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-9,
             max_iterations: 200,
             ..NewtonParams::default()

@@ -8,6 +8,7 @@ use hooke::sim::{
     Settings, SimError, Simulation,
 };
 use hooke::solvers::NewtonParams;
+use hooke_solvers::Convergence;
 use nalgebra::Vector3;
 
 type V = Vector3<f64>;
@@ -48,6 +49,7 @@ fn settings(integrator: Integrator, pins: PinMethod) -> Settings {
         integrator,
         pins,
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-10,
             ..NewtonParams::default()
         },
@@ -166,6 +168,7 @@ fn newton_halving_keeps_the_counter_forces() {
     let scene = cloth(true);
     let limited = |pins| Settings {
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-10,
             max_iterations: 4,
             ..NewtonParams::default()

@@ -360,6 +360,37 @@ impl<const D: usize> HessianPattern<D> {
         })
     }
 
+    /// Add `block` to the diagonal block of block column `column` (the free vertex numbered
+    /// `column` in [`FreeDofs`], or vertex `column` for a pattern on all vertices). `block` should
+    /// be symmetric; only its values are copied, entry by entry, so a symmetric block keeps
+    /// `values` exactly symmetric. For per-vertex terms such as contact barriers against static
+    /// obstacles.
+    ///
+    /// # Panics
+    /// If `column` is out of range or `values` does not have one entry per stored entry.
+    #[track_caller]
+    pub fn add_diagonal_block(
+        &self,
+        column: usize,
+        block: &SMatrix<f64, D, D>,
+        values: &mut [f64],
+    ) {
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "add_diagonal_block: one value per stored entry"
+        );
+        let graph = &self.graph;
+        let blocks = graph.column_blocks(column);
+        let column_len = D * blocks.len();
+        let at = D * D * blocks.start + D * graph.diagonal_slot(column);
+        for b in 0..D {
+            for a in 0..D {
+                values[at + b * column_len + a] += block[(a, b)];
+            }
+        }
+    }
+
     /// Add `per_vertex[v]` · I_D to the diagonal block of every free vertex v (`per_vertex` is
     /// indexed by full vertex index; the entries of pinned vertices are not read). For viscous
     /// damping f = −c v this adds `scale` · c per vertex (c in N·s/m, e.g. h · c in kg for backward

@@ -76,9 +76,10 @@ pub(crate) struct RunArgs {
     /// limit (newton, default 100), iterations per step (pd, default 10).
     #[arg(long, value_name = "K")]
     iterations: Option<usize>,
-    /// Relative tolerance: the linear solver's residual (linearized, > 0, default 1e-8), Newton's
-    /// gradient (newton, ≥ 0, default 1e-8), PD's position change per iteration (pd, ≥ 0, default
-    /// 0: run all iterations).
+    /// Tolerance: the linear solver's relative residual (linearized, > 0, default 1e-8); for
+    /// newton, newton-cg and lbfgs the step size in m/s, the largest vertex displacement of a
+    /// Newton step divided by h (≥ 0, default 1e-4); PD's position change per iteration (pd,
+    /// ≥ 0, default 0: run all iterations).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     tolerance: Option<f64>,
     /// Newton's relaxation between its steps (newton only): none (plain Newton, the default) or
@@ -504,7 +505,12 @@ fn run_setup<const D: usize>(
             time: sim.state().time,
             kinetic_energy: energy.kinetic,
             potential_energy: energy.potential,
+            contact_energy: (sim.settings().integrator.uses_contact_barrier()
+                && !sim.scene().contacts().is_empty())
+            .then_some(energy.contact),
             total_energy: energy.total,
+            contact_distance: (!sim.scene().contacts().is_empty())
+                .then(|| sim.smallest_contact_distance()),
             max_stretch: sim.scene().max_stretch(sim.state()),
             solver_iterations: report.and_then(|r| r.solver).map(|s| s.iterations),
             solver_residual: report.and_then(|r| r.solver).map(|s| s.residual),

@@ -35,6 +35,7 @@
 //! (the springs near the sphere turn by large angles in a frame): the projection does not make
 //! contact part of the solve, and does not promise energy decrease.
 
+use hooke_assembly::contact::Obstacle;
 use hooke_assembly::{Definiteness, FreeDofs, HessianParams, HessianPattern, HessianWorkspace};
 use hooke_solvers::{
     BlockJacobi, CgParams, ConjugateGradient, LinearOperator, Preconditioner, SolveError, Symmetric,
@@ -86,6 +87,125 @@ impl<const D: usize> Shape<D> {
             Shape::Sphere { center, radius } => (x - center).norm() - radius,
         }
     }
+}
+
+/// Standard gravity g₀ (m/s²), the default barrier stiffness's acceleration scale.
+pub const STANDARD_GRAVITY: f64 = 9.806_65;
+
+/// The default barrier reach d̂ as a share of the bounding-box diagonal of the mesh's initial
+/// positions: 1e-3 (1.4 mm for a 1 m square of cloth, 0.3 mm for a 0.3 m solid).
+pub const DEFAULT_BARRIER_SHARE: f64 = 1e-3;
+
+/// The default barrier stiffness κ̂ in units of g₀/d̂: 1000. At d = d̂/2 the barrier pushes a
+/// vertex with about 1,200 times its weight, so that a vertex at the bottom of a solid, which
+/// carries the weight of many, still rests at a distance of the order of d̂ (with g₀/d̂ the lowest
+/// vertex of bunny-drop settled at 1e-7 d̂ and crept on towards the ground: distances far below
+/// what a solver tolerance resolves).
+pub const DEFAULT_BARRIER_STIFFNESS: f64 = 1000.0;
+
+/// The default friction smoothing velocity ε_v, m/s.
+pub const DEFAULT_FRICTION_VELOCITY: f64 = 1e-3;
+
+/// How the implicit integrators that minimise Φ (newton, newton-cg, lbfgs) model contact: IPC's
+/// log barrier between every free vertex and every obstacle, and smooth lagged Coulomb friction
+/// (docs/contact.md). Every value is fixed for a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BarrierSettings {
+    /// The barrier's reach d̂ (m, finite, > 0): a vertex farther than d̂ from an obstacle feels
+    /// nothing; the barrier grows without bound as it nears the surface. `None`:
+    /// [`DEFAULT_BARRIER_SHARE`] of the bounding-box diagonal of the mesh's initial positions.
+    pub distance: Option<f64>,
+    /// The barrier's stiffness per unit of vertex mass κ̂ (1/s², finite, > 0): vertex v's barrier
+    /// energy is κ̂ m_v b(d) (J) with b(d) = −(d − d̂)² ln(d/d̂) (m²). `None`:
+    /// [`DEFAULT_BARRIER_STIFFNESS`] g₀/d̂.
+    pub stiffness: Option<f64>,
+    /// Friction's smoothing velocity ε_v (m/s, finite, > 0): below this tangential speed friction
+    /// acts as a stiff spring towards sticking, above it as μ times the normal force. Default
+    /// [`DEFAULT_FRICTION_VELOCITY`].
+    pub friction_velocity: f64,
+}
+
+impl Default for BarrierSettings {
+    fn default() -> Self {
+        BarrierSettings {
+            distance: None,
+            stiffness: None,
+            friction_velocity: DEFAULT_FRICTION_VELOCITY,
+        }
+    }
+}
+
+impl BarrierSettings {
+    /// Check every value set.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the first value that is not finite and positive.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if let Some(d) = self.distance {
+            positive("barrier.distance", d)?;
+        }
+        if let Some(k) = self.stiffness {
+            positive("barrier.stiffness", k)?;
+        }
+        positive("barrier.friction_velocity", self.friction_velocity)?;
+        Ok(())
+    }
+
+    /// (d̂ in m, κ̂ in 1/s²) for a mesh whose initial positions are `positions`.
+    pub fn resolve<const D: usize>(&self, positions: &[SVector<f64, D>]) -> (f64, f64) {
+        let distance = self.distance.unwrap_or_else(|| {
+            let mut lo = SVector::<f64, D>::repeat(f64::INFINITY);
+            let mut hi = SVector::<f64, D>::repeat(f64::NEG_INFINITY);
+            for p in positions {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
+            let diagonal = (hi - lo).norm();
+            // A single point (or nothing): fall back to 1 m.
+            let diagonal = if diagonal.is_finite() && diagonal > 0.0 {
+                diagonal
+            } else {
+                1.0
+            };
+            DEFAULT_BARRIER_SHARE * diagonal
+        });
+        let stiffness = self
+            .stiffness
+            .unwrap_or(DEFAULT_BARRIER_STIFFNESS * STANDARD_GRAVITY / distance);
+        (distance, stiffness)
+    }
+}
+
+/// The obstacles of `contacts` as the solvers see them: a plane as one half-space, a box as its
+/// 2·D walls (half-spaces facing inwards), a sphere as a sphere to stay outside of; each with its
+/// friction coefficient.
+pub fn obstacles<const D: usize>(contacts: &[Contact<D>]) -> Vec<(Obstacle<D>, f64)> {
+    let mut out = Vec::new();
+    for c in contacts {
+        match c.shape {
+            Shape::Plane { point, normal } => {
+                out.push((Obstacle::HalfSpace { point, normal }, c.friction));
+            }
+            Shape::Sphere { center, radius } => {
+                out.push((Obstacle::SphereOutside { center, radius }, c.friction));
+            }
+            Shape::Box { min, max } => {
+                for a in 0..D {
+                    let mut normal = SVector::zeros();
+                    normal[a] = 1.0;
+                    out.push((Obstacle::HalfSpace { point: min, normal }, c.friction));
+                    out.push((
+                        Obstacle::HalfSpace {
+                            point: max,
+                            normal: -normal,
+                        },
+                        c.friction,
+                    ));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// A contact constraint: a shape and a friction coefficient.

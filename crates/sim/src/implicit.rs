@@ -16,8 +16,12 @@
 //!   keeps one constant matrix, which a direction-dependent Jacobian cannot enter, so it refuses a
 //!   dashpot with [`SimError::Unsupported`];
 //! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve (as in the explicit integrators);
-//! - contact: not here; the simulation projects the whole mesh after the step (the `contact`
-//!   module), so the scene given to `BackwardEuler::step` has its contacts taken out;
+//! - contact: for Newton, Newton-CG and L-BFGS part of Φ (a barrier per free vertex and obstacle,
+//!   and friction lagged at x_n: [`BackwardEulerStep::set_contact`], docs/contact.md), with a
+//!   start x⁰ on the way from x_n to y that keeps every vertex outside and line searches that never
+//!   cross an obstacle; projective dynamics does not model it here: the simulation projects the
+//!   whole mesh after its step (the `contact` module), so the scene given to it has its contacts
+//!   taken out;
 //! - pins: removed from the unknowns (SPEC §3 reduction, [`PinMethod::Reduction`]), held at their
 //!   positions, or at the end of the step moved to where their prescribed path is at t + h (the
 //!   right-hand side changes, the matrices do not: PD's factorisation and Newton's symbolic
@@ -123,13 +127,13 @@ impl PdPreconditioned {
                 let r = lbfgs
                     .minimize(objective, preconditioner, unknowns)
                     .map_err(SimError::solver)?;
-                (r.iterations, r.gradient(), r.stop)
+                (r.iterations, r.residual(), r.stop)
             }
             PdPreconditioned::NewtonCg(solver) => {
                 let r = solver
                     .minimize(objective, preconditioner, unknowns)
                     .map_err(SimError::solver)?;
-                (r.iterations, r.gradient(), r.stop)
+                (r.iterations, r.residual(), r.stop)
             }
         })
     }
@@ -397,6 +401,7 @@ impl<const D: usize> BackwardEuler<D> {
             ),
         };
         objective.set_parallel(parallel);
+        objective.set_contact(scene.contact_model(), mesh.masses());
         let unknowns = vec![0.0; objective.dim()];
         let pd_factor = |pd_params: PdParams| {
             let pd_params = PdParams {
@@ -821,7 +826,7 @@ impl<const D: usize> BackwardEuler<D> {
                 positions.copy_from_slice(objective.positions(unknowns));
                 SolveSummary {
                     iterations: report.iterations,
-                    residual: report.gradient(),
+                    residual: report.residual(),
                     stop: report.stop,
                     substeps: 1,
                 }

@@ -84,22 +84,35 @@ impl Integrator {
 
     /// What the residual in this integrator's [`hooke_solvers::SolveSummary::residual`] is, and
     /// its unit: (quantity, unit), `None` for the explicit methods, which solve nothing.
-    /// - `newton`, `lbfgs`, `newton-cg`: the relative gradient ‖∇Φ(x)‖ / ‖∇Φ(x⁰)‖ (dimensionless;
-    ///   the largest over the pieces of a halved step);
+    /// - `newton`, `lbfgs`, `newton-cg`: their convergence criterion's quantity, by default the
+    ///   step size, the largest vertex displacement of the last (quasi-)Newton step divided by h
+    ///   (m/s; the largest over the pieces of a halved step);
     /// - `pd`, `pd-chebyshev`: the largest change of a position coordinate in the last iteration
     ///   (m);
     /// - `linearized`: the relative linear residual ‖b − A v‖ / ‖b‖ (dimensionless).
     pub fn solver_residual(&self) -> Option<(&'static str, &'static str)> {
         match self {
-            Integrator::Newton | Integrator::Lbfgs | Integrator::NewtonCg => {
-                Some(("relative gradient |grad Phi(x)| / |grad Phi(x0)|", "1"))
-            }
+            Integrator::Newton | Integrator::Lbfgs | Integrator::NewtonCg => Some((
+                "step size: the largest vertex displacement of the last Newton step / h",
+                "m/s",
+            )),
             Integrator::ProjectiveDynamics | Integrator::ChebyshevPd => {
                 Some(("largest position change in the last iteration", "m"))
             }
             Integrator::Linearized => Some(("relative linear residual |b - A v| / |b|", "1")),
             Integrator::ExplicitEuler | Integrator::SymplecticEuler => None,
         }
+    }
+
+    /// True for the integrators whose contact is part of the minimised objective Φ (newton,
+    /// newton-cg, lbfgs): a barrier per vertex and obstacle, with lagged friction, and line
+    /// searches that never cross an obstacle (docs/contact.md). The others project vertices
+    /// after their steps or substeps.
+    pub fn uses_contact_barrier(&self) -> bool {
+        matches!(
+            self,
+            Integrator::Newton | Integrator::NewtonCg | Integrator::Lbfgs
+        )
     }
 
     /// True for the explicit methods, which have a step-size limit and take substeps.

@@ -37,7 +37,7 @@ pub mod scenes;
 mod simulation;
 pub mod stability;
 
-pub use contact::{Contact, Shape};
+pub use contact::{BarrierSettings, Contact, Shape};
 pub use damping::Damping;
 pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;

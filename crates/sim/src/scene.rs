@@ -3,10 +3,11 @@
 use hooke_mesh::SpringMesh;
 use nalgebra::SVector;
 
-use crate::contact::Contact;
+use crate::contact::{obstacles, BarrierSettings, Contact};
 use crate::damping::Damping;
 use crate::error::{positive, SimError};
 use crate::forces::{ExternalForce, ExternalForces};
+use hooke_solvers::backward_euler::ContactModel;
 
 /// Which vertices are pinned (held at their initial positions).
 #[derive(Clone, Debug, PartialEq)]
@@ -137,7 +138,10 @@ pub struct Energy {
     pub kinetic: f64,
     /// Elastic energy of the springs plus the potentials of gravity, buoyancy and attractor, J.
     pub potential: f64,
-    /// kinetic + potential, J.
+    /// The contact barrier's energy, J ([`Scene::barrier_energy`]): counted only where the
+    /// integrator models contact by barriers (newton, newton-cg, lbfgs), 0 otherwise.
+    pub contact: f64,
+    /// kinetic + potential + contact, J.
     pub total: f64,
 }
 
@@ -153,6 +157,7 @@ pub struct Scene<const D: usize> {
     forces: ExternalForces<D>,
     damping: Damping,
     contacts: Vec<Contact<D>>,
+    barrier: BarrierSettings,
     time_step: f64,
     moving: Vec<MovingPins<D>>,
 }
@@ -172,6 +177,7 @@ impl<const D: usize> Scene<D> {
             forces: ExternalForces::default(),
             damping: Damping::default(),
             contacts: Vec::new(),
+            barrier: BarrierSettings::default(),
             time_step,
             moving: Vec::new(),
         })
@@ -297,6 +303,63 @@ impl<const D: usize> Scene<D> {
         Ok(self)
     }
 
+    /// Set how the minimising implicit integrators model contact ([`BarrierSettings`]).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a value that is not finite and positive.
+    pub fn with_barrier(mut self, barrier: BarrierSettings) -> Result<Self, SimError> {
+        barrier.validate()?;
+        self.barrier = barrier;
+        Ok(self)
+    }
+
+    /// The contact barrier's settings as given ([`Scene::with_barrier`]; defaults unresolved).
+    pub fn barrier(&self) -> BarrierSettings {
+        self.barrier
+    }
+
+    /// The contact model of the minimising implicit integrators: the obstacles (a box as its
+    /// walls) with their friction, d̂ and κ̂ resolved against the mesh's initial positions
+    /// ([`BarrierSettings::resolve`]); `None` for a scene without contact, which then costs
+    /// nothing.
+    pub fn contact_model(&self) -> Option<ContactModel<D>> {
+        if self.contacts.is_empty() {
+            return None;
+        }
+        let (distance, stiffness) = self.barrier.resolve(self.mesh.positions());
+        Some(ContactModel {
+            obstacles: obstacles(&self.contacts),
+            distance,
+            stiffness,
+            friction_velocity: self.barrier.friction_velocity,
+        })
+    }
+
+    /// The barrier energy Σ κ̂ m_v b(d) (J) of the free vertices at `positions` under
+    /// [`Scene::contact_model`] (0 without contact; +∞ if a free vertex is on or inside an
+    /// obstacle).
+    pub fn barrier_energy(&self, positions: &[SVector<f64, D>]) -> f64 {
+        let Some(model) = self.contact_model() else {
+            return 0.0;
+        };
+        let masses = self.mesh.masses();
+        let mut sum = 0.0;
+        for (v, x) in positions.iter().enumerate() {
+            if self.is_pinned[v] {
+                continue;
+            }
+            for (obstacle, _) in &model.obstacles {
+                let d = obstacle.distance(x);
+                if d < model.distance {
+                    sum += model.stiffness
+                        * masses[v]
+                        * hooke_assembly::contact::barrier(d, model.distance);
+                }
+            }
+        }
+        sum
+    }
+
     /// Change the time step h (s).
     ///
     /// # Errors
@@ -391,6 +454,7 @@ impl<const D: usize> Scene<D> {
         Energy {
             kinetic,
             potential,
+            contact: 0.0,
             total: kinetic + potential,
         }
     }

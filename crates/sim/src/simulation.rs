@@ -179,7 +179,14 @@ impl<const D: usize> Simulation<D> {
             }
             _ => None,
         };
-        let projection = if !scene.contacts().is_empty() && !settings.integrator.is_explicit() {
+        let barrier = settings.integrator.uses_contact_barrier() && !scene.contacts().is_empty();
+        if barrier {
+            check_outside_obstacles(&scene, &state.positions)?;
+        }
+        let projection = if !scene.contacts().is_empty()
+            && !settings.integrator.is_explicit()
+            && !settings.integrator.uses_contact_barrier()
+        {
             Some(StepProjection::new(&scene)?)
         } else {
             None
@@ -218,7 +225,12 @@ impl<const D: usize> Simulation<D> {
                 }
                 let g = scene.forces().gravity().map_or(0.0, |g| g.norm());
                 let scale = scene.mesh().total_mass() * g * (max - min).norm();
-                let initial = scene.energy(&state).total;
+                let initial = scene.energy(&state).total
+                    + if barrier {
+                        scene.barrier_energy(&state.positions)
+                    } else {
+                        0.0
+                    };
                 Some((initial, initial + factor * (initial.abs() + scale)))
             }
             _ => None,
@@ -336,7 +348,12 @@ impl<const D: usize> Simulation<D> {
 
     /// Energy of the current state (J).
     pub fn energy(&self) -> Energy {
-        self.scene.energy(&self.state)
+        let mut energy = self.scene.energy(&self.state);
+        if self.settings.integrator.uses_contact_barrier() {
+            energy.contact = self.scene.barrier_energy(&self.state.positions);
+            energy.total += energy.contact;
+        }
+        energy
     }
 
     /// Advance one frame of the scene's time step.
@@ -381,9 +398,14 @@ impl<const D: usize> Simulation<D> {
         if self.implicit.is_some() || self.linearized.is_some() {
             self.pinned_targets(end_time);
         }
-        // The implicit solvers step a scene without its contacts; the projection below does the
-        // contact for the whole mesh (see the `contact` module).
-        let contacts = self.scene.take_contacts();
+        // The projecting implicit solvers step a scene without its contacts; the projection below
+        // does the contact for the whole mesh (see the `contact` module). The minimising ones
+        // keep them: their contact is part of Φ.
+        let contacts = if self.projection.is_some() {
+            self.scene.take_contacts()
+        } else {
+            Vec::new()
+        };
         let h = self.scene.time_step();
         if let Some(implicit) = &mut self.implicit {
             let state = &mut self.state;
@@ -403,7 +425,9 @@ impl<const D: usize> Simulation<D> {
                 &self.next_pinned,
                 &pins_at,
             );
-            self.scene.restore_contacts(contacts);
+            if self.projection.is_some() {
+                self.scene.restore_contacts(contacts);
+            }
             solver = Some(outcome?);
             // Backward Euler sets v⁺ = (x⁺ − x_n)/h · e^(−h c_drag).
             self.project_contacts((-h * self.scene.damping().drag).exp())?;
@@ -417,14 +441,18 @@ impl<const D: usize> Simulation<D> {
                 self.steps_taken + 1,
                 self.settings.parallel,
             );
-            self.scene.restore_contacts(contacts);
+            if self.projection.is_some() {
+                self.scene.restore_contacts(contacts);
+            }
             let outcome = outcome?;
             solver = Some(outcome.summary);
             clamped_hessian = outcome.clamped;
             // The linearised step sets x⁺ = x_n + h v⁺, drag included in v⁺.
             self.project_contacts(1.0)?;
         } else {
-            self.scene.restore_contacts(contacts);
+            if self.projection.is_some() {
+                self.scene.restore_contacts(contacts);
+            }
             let h = self.scene.time_step() / self.substeps as f64;
             for _ in 0..self.substeps {
                 self.explicit_substep(h);
@@ -455,6 +483,13 @@ impl<const D: usize> Simulation<D> {
             wall_time: start.elapsed(),
             clamped_hessian,
         })
+    }
+
+    /// The deepest penetration of a free vertex into an obstacle at the current state: the most
+    /// negative signed distance (m), or the smallest distance if none is inside (∞ without
+    /// obstacles).
+    pub fn smallest_contact_distance(&self) -> f64 {
+        smallest_distance(&self.scene, &self.state.positions).0
     }
 
     /// Contact after an implicit step (see [`StepProjection::apply`]).
@@ -595,4 +630,42 @@ fn check_finite<const D: usize>(state: &State<D>, step: usize) -> Result<(), Sim
         }
     }
     Ok(())
+}
+
+/// The smallest signed distance (m) of a free vertex from an obstacle of `scene` at `positions`,
+/// with the vertex and the obstacle's index (∞ without obstacles).
+fn smallest_distance<const D: usize>(
+    scene: &Scene<D>,
+    positions: &[SVector<f64, D>],
+) -> (f64, usize, usize) {
+    let mut smallest = (f64::INFINITY, 0, 0);
+    let pinned = scene.is_pinned();
+    for (v, x) in positions.iter().enumerate() {
+        if pinned[v] {
+            continue;
+        }
+        for (k, contact) in scene.contacts().iter().enumerate() {
+            let d = contact.signed_distance(x);
+            if d < smallest.0 {
+                smallest = (d, v, k);
+            }
+        }
+    }
+    smallest
+}
+
+/// The contact barrier needs every free vertex strictly outside every obstacle at the start.
+fn check_outside_obstacles<const D: usize>(
+    scene: &Scene<D>,
+    positions: &[SVector<f64, D>],
+) -> Result<(), SimError> {
+    let (d, v, k) = smallest_distance(scene, positions);
+    if d > 0.0 {
+        return Ok(());
+    }
+    Err(SimError::invalid(
+        "initial positions",
+        format!("vertex {v} at signed distance {d:e} m from contact[{k}]"),
+        "every free vertex must start strictly outside every obstacle (the contact barrier is          infinite on and inside a surface): move the mesh or the obstacle",
+    ))
 }

@@ -7,6 +7,7 @@ use hooke_sim::{
     scenes, Damping, Integrator, PinMethod, PinPath, Pins, RateSource, Settings, SimError,
     Simulation, State,
 };
+use hooke_solvers::Convergence;
 use hooke_solvers::{LbfgsParams, NewtonCgParams, NewtonParams};
 use nalgebra::Vector3;
 
@@ -53,15 +54,18 @@ fn tight(integrator: Integrator, pins: PinMethod) -> Settings {
         integrator,
         pins,
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: TIGHT,
             ..NewtonParams::default()
         },
         lbfgs: LbfgsParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: TIGHT,
             max_iterations: 2000,
             ..LbfgsParams::default()
         },
         newton_cg: NewtonCgParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: TIGHT,
             ..NewtonCgParams::default()
         },

@@ -18,6 +18,7 @@
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
+use hooke_solvers::Convergence;
 use hooke_solvers::{
     BackwardEulerStep, IndefinitePolicy, Newton, NewtonParams, NewtonProblem, Relaxation,
     SparseCholesky,
@@ -73,6 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let free = FreeDofs::new(mesh.vertex_count(), &pinned)?;
     let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
     let params = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-10,
         max_iterations: 300,
         indefinite,

@@ -8,9 +8,12 @@ use hooke_assembly::{
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
+mod contact;
 mod objective;
 mod patches;
 mod relaxation;
+use contact::StepContact;
+pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
 
 /// The nonlinear elimination stops a region's solve at this many times its gradient's rounding
@@ -117,6 +120,11 @@ pub struct BackwardEulerStep<const D: usize> {
     dashpot: f64,
     dashpot_start: Vec<SVector<f64, D>>,
     dashpot_directions: Vec<SVector<f64, D>>,
+    /// Contact barriers and lagged friction ([`BackwardEulerStep::set_contact`]); `None`: no
+    /// obstacles, and no cost.
+    contact: Option<Box<StepContact<D>>>,
+    /// Per vertex, a contact term's gradient or a trial move (scratch of the contact terms).
+    contact_scratch: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> BackwardEulerStep<D> {
@@ -209,6 +217,8 @@ impl<const D: usize> BackwardEulerStep<D> {
             dashpot: 0.0,
             dashpot_start: Vec::new(),
             dashpot_directions: Vec::new(),
+            contact: None,
+            contact_scratch: Vec::new(),
             free,
             pattern,
             counter,
@@ -239,9 +249,13 @@ impl<const D: usize> BackwardEulerStep<D> {
         D * if full { v } else { f }
     }
 
-    /// Set the inertial target y (per vertex, m) and the positions (per vertex, m; the pinned ones
-    /// are held there), and write the free part of `y`, the usual initial guess, into `unknowns`
-    /// (with counter-forces, the pinned unknowns get the pinned positions).
+    /// Set the inertial target y (per vertex, m) and the positions (per vertex, m: the step's start
+    /// x_n at free vertices; the pinned ones are held there), and write the initial guess into
+    /// `unknowns` (with counter-forces, the pinned unknowns get the pinned positions): the free
+    /// part of `y`; with obstacles ([`BackwardEulerStep::set_contact`]) y only if no vertex meets
+    /// an obstacle on its straight way from x_n to y, x_n otherwise; and the friction is lagged at
+    /// x_n.
+    /// Call [`BackwardEulerStep::set_contact`] first.
     ///
     /// # Panics
     /// On length mismatches.
@@ -255,9 +269,26 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.y.copy_from_slice(y);
         self.x.copy_from_slice(positions);
         let full = self.counter.is_some();
+        // With obstacles the start must be feasible: y if the way from x_n to y stays clear of
+        // every obstacle, x_n (outside every obstacle) otherwise. A start part of the way to y
+        // would put the vertices nearest an obstacle at a tenth of their distance, deep in the
+        // barrier, for Newton to push back out.
+        let share = match &mut self.contact {
+            Some(contact) => {
+                let free = self.free.free_vertices();
+                contact.lag_friction(free, positions);
+                for (d, (y, x)) in self.contact_scratch.iter_mut().zip(y.iter().zip(positions)) {
+                    *d = y - x;
+                }
+                contact.max_step(free, positions, &self.contact_scratch)
+            }
+            None => 1.0,
+        };
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
-            let o = Self::offset(full, f, v as usize);
-            unknowns[o..o + D].copy_from_slice(self.y[v as usize].as_slice());
+            let v = v as usize;
+            let o = Self::offset(full, f, v);
+            let start = if share == 1.0 { self.y[v] } else { self.x[v] };
+            unknowns[o..o + D].copy_from_slice(start.as_slice());
         }
         if full {
             for &p in self.free.pinned() {
@@ -294,6 +325,57 @@ impl<const D: usize> BackwardEulerStep<D> {
             let (i, j) = spring.ends();
             *d = hooke_assembly::spring::direction(&(start[i] - start[j]))
                 .map_or(SVector::zeros(), |(unit, _)| unit);
+        }
+    }
+
+    /// Add contact with static obstacles to Φ (`None` removes it): for every free vertex v and
+    /// obstacle, h² κ_v b(d) with IPC's log barrier b (zero at distances d ≥ d̂, +∞ at the
+    /// surface) and κ_v = κ̂ m_v (`masses`: kg per vertex, the lumped masses, so that the barrier
+    /// energy does not depend on the damping folded into the effective masses), and h² times the
+    /// lagged friction potential of the contacts within
+    /// d̂ at the step's start (see docs/contact.md). Newton's line search then never crosses an
+    /// obstacle ([`crate::NewtonProblem::max_step_length`]). Every free vertex must start each step
+    /// strictly outside every obstacle (d > 0); the caller checks it.
+    ///
+    /// # Panics
+    /// If the model's distance, stiffness or friction velocity is not finite and positive, a
+    /// friction coefficient is negative or NaN, or `masses` does not have one entry per vertex.
+    #[track_caller]
+    pub fn set_contact(&mut self, model: Option<ContactModel<D>>, masses: &[f64]) {
+        assert_eq!(masses.len(), self.x.len(), "one mass per vertex");
+        self.contact = model.map(|model| {
+            for (name, value) in [
+                ("distance", model.distance),
+                ("stiffness", model.stiffness),
+                ("friction velocity", model.friction_velocity),
+            ] {
+                assert!(
+                    value.is_finite() && value > 0.0,
+                    "the contact {name} must be finite and > 0, got {value}"
+                );
+            }
+            for &(_, mu) in &model.obstacles {
+                assert!(mu >= 0.0, "friction must be ≥ 0, got {mu}");
+            }
+            Box::new(StepContact::new(model, masses, self.h))
+        });
+        if self.contact.is_some() && self.contact_scratch.len() != self.x.len() {
+            self.contact_scratch = vec![SVector::zeros(); self.x.len()];
+        }
+    }
+
+    /// The contact model, if any ([`BackwardEulerStep::set_contact`]).
+    pub fn contact(&self) -> Option<&ContactModel<D>> {
+        self.contact.as_ref().map(|c| &c.model)
+    }
+
+    /// The smallest distance (m) of a free vertex from an obstacle at the unknowns `xf` (∞ without
+    /// obstacles).
+    pub fn smallest_contact_distance(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        match &self.contact {
+            Some(contact) => contact.smallest_distance(self.free.free_vertices(), &self.x),
+            None => f64::INFINITY,
         }
     }
 

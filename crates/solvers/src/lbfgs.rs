@@ -16,14 +16,18 @@
 //!    positive definite; a skipped pair is counted. Φ is not convex where springs are compressed, so
 //!    pairs are skipped there.
 //!
-//! It stops when ‖∇Φ(x)‖ ≤ tolerance · ‖∇Φ(x⁰)‖ (the criterion of [`Newton`](crate::Newton)), at the
-//! iteration limit, or when no step along a descent direction lowers Φ while the gradient is within
-//! its rounding error ([`StopReason::RoundOff`], converged as far as the arithmetic resolves); a failed search with a larger gradient first
-//! retries along −H₀ g with the history cleared, and is an error if that fails too.
+//! It converges ([`StopReason::Converged`]) when its criterion holds, as [`Newton`](crate::Newton)'s
+//! ([`LbfgsParams::convergence`]): by default the direction p's [`NewtonProblem::step_size`] is at
+//! most the tolerance (backward Euler: m/s; the step is still taken when the search accepts it), or
+//! ‖∇Φ(x)‖ ≤ tolerance · ‖∇Φ(x⁰)‖. It stops unconverged at the iteration limit, or when no step
+//! along a descent direction lowers Φ while the gradient is within its rounding error
+//! ([`StopReason::RoundOff`]); a failed search with a larger gradient first retries along −H₀ g
+//! with the history cleared, and is an error if that fails too. Every search starts at the longest
+//! step the problem allows ([`NewtonProblem::max_step_length`]: no iterate crosses an obstacle).
 
 use std::time::{Duration, Instant};
 
-use crate::newton::NewtonProblem;
+use crate::newton::{Convergence, NewtonProblem};
 use crate::operator::{dot, Preconditioner};
 use crate::params::{self, ParamError};
 use crate::report::StopReason;
@@ -33,8 +37,12 @@ use crate::report::StopReason;
 pub struct LbfgsParams {
     /// Iterations (accepted steps) at most. Default 100.
     pub max_iterations: usize,
-    /// Stop when ‖∇Φ(x)‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖ (dimensionless). 0 runs to the iteration limit.
-    /// Default 1e-8, as Newton's.
+    /// What `tolerance` bounds (as [`crate::NewtonParams::convergence`]). Default
+    /// [`Convergence::StepSize`].
+    pub convergence: Convergence,
+    /// The tolerance, in the criterion's unit (step size: the problem's, m/s for backward Euler;
+    /// relative gradient: dimensionless). 0 runs to the iteration limit. Default
+    /// [`crate::DEFAULT_STEP_TOLERANCE`], as Newton's.
     pub tolerance: f64,
     /// Curvature pairs kept (the memory). Default 5 (Liu et al. 2017 use 5; measured in the bench).
     pub history: usize,
@@ -48,7 +56,8 @@ impl Default for LbfgsParams {
     fn default() -> Self {
         LbfgsParams {
             max_iterations: 100,
-            tolerance: 1e-8,
+            convergence: Convergence::StepSize,
+            tolerance: crate::DEFAULT_STEP_TOLERANCE,
             history: 5,
             armijo: 1e-4,
             max_halvings: 30,
@@ -123,6 +132,11 @@ pub struct LbfgsReport {
     pub restarts: usize,
     /// Why it stopped.
     pub stop: StopReason,
+    /// The criterion it was run to.
+    pub convergence: Convergence,
+    /// [`NewtonProblem::step_size`] of the last direction computed (∞ before any; 0 at a
+    /// stationary start).
+    pub step_size: f64,
     /// Wall time of the solve.
     pub wall_time: Duration,
 }
@@ -131,6 +145,14 @@ impl LbfgsReport {
     /// The last relative gradient norm (NaN for an empty report).
     pub fn gradient(&self) -> f64 {
         self.gradients.last().copied().unwrap_or(f64::NAN)
+    }
+
+    /// The criterion's own quantity: the last step size or the relative gradient.
+    pub fn residual(&self) -> f64 {
+        match self.convergence {
+            Convergence::StepSize => self.step_size,
+            Convergence::RelativeGradient => self.gradient(),
+        }
     }
 }
 
@@ -232,8 +254,11 @@ impl Lbfgs {
             skipped_pairs: 0,
             restarts: 0,
             stop: StopReason::IterationLimit,
+            convergence: p.convergence,
+            step_size: f64::INFINITY,
             wall_time: Duration::ZERO,
         };
+        let step_test = p.convergence == Convergence::StepSize;
         problem.gradient(x, &mut self.g);
         let g0 = norm(&self.g);
         let scale = if g0 > 0.0 { 1.0 / g0 } else { 1.0 };
@@ -250,7 +275,12 @@ impl Lbfgs {
                 finish(&mut report, StopReason::NonFinite);
                 return Err(LbfgsError::NonFinite { report });
             }
-            if g0 == 0.0 || gradient <= p.tolerance {
+            if g0 == 0.0 || gradient == 0.0 {
+                report.step_size = 0.0;
+                finish(&mut report, StopReason::Converged);
+                return Ok(report);
+            }
+            if !step_test && gradient <= p.tolerance {
                 finish(&mut report, StopReason::Converged);
                 return Ok(report);
             }
@@ -258,13 +288,19 @@ impl Lbfgs {
                 finish(&mut report, StopReason::IterationLimit);
                 return Ok(report);
             }
+            let mut small;
             let accepted = loop {
                 self.two_loop(initial, stored, newest);
                 let slope = dot(&self.g, &self.direction);
+                report.step_size = problem.step_size(&self.direction);
+                small = step_test && report.step_size <= p.tolerance;
                 if slope < 0.0 {
                     if let Some(found) = self.line_search(problem, x, slope, &mut report) {
                         break Some(found);
                     }
+                }
+                if small {
+                    break None;
                 }
                 if stored == 0 {
                     break None;
@@ -274,6 +310,11 @@ impl Lbfgs {
                 report.restarts += 1;
             };
             let Some((alpha, change)) = accepted else {
+                if small {
+                    // The criterion holds at x; no step of the direction lowers Φ further.
+                    finish(&mut report, StopReason::Converged);
+                    return Ok(report);
+                }
                 let noise = problem.gradient_round_off(x);
                 if norm(&self.g) <= noise {
                     finish(&mut report, StopReason::RoundOff);
@@ -313,6 +354,10 @@ impl Lbfgs {
             } else {
                 report.skipped_pairs += 1;
             }
+            if small {
+                finish(&mut report, StopReason::Converged);
+                return Ok(report);
+            }
         }
     }
 
@@ -344,8 +389,8 @@ impl Lbfgs {
         }
     }
 
-    /// Backtracking Armijo search along `direction` from α = 1: the accepted α and Φ's change, or
-    /// `None` if no trial lowers Φ enough.
+    /// Backtracking Armijo search along `direction` from the longest step the problem allows (at
+    /// most 1): the accepted α and Φ's change, or `None` if no trial lowers Φ enough.
     fn line_search(
         &mut self,
         problem: &mut impl NewtonProblem,
@@ -353,7 +398,10 @@ impl Lbfgs {
         slope: f64,
         report: &mut LbfgsReport,
     ) -> Option<(f64, f64)> {
-        let mut alpha = 1.0;
+        let mut alpha = problem.max_step_length(x, &self.direction).min(1.0);
+        if alpha.is_nan() || alpha <= 0.0 {
+            return None;
+        }
         for _ in 0..=self.params.max_halvings {
             for ((t, x), d) in self.trial.iter_mut().zip(x).zip(&self.direction) {
                 *t = x + alpha * d;

@@ -64,9 +64,9 @@ pub use lbfgs::{
     Lbfgs, LbfgsError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY, LBFGS_MAX_ITERATIONS,
 };
 pub use newton::{
-    IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams, NewtonProblem,
-    NewtonReport, Relaxation, RelaxationWork, MAX_LINE_SEARCH_HALVINGS, MAX_PATCH_COVERS,
-    MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
+    Convergence, IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams,
+    NewtonProblem, NewtonReport, Relaxation, RelaxationWork, DEFAULT_STEP_TOLERANCE,
+    MAX_LINE_SEARCH_HALVINGS, MAX_PATCH_COVERS, MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
 };
 pub use newton_cg::{
     NewtonCg, NewtonCgError, NewtonCgParams, NewtonCgReport, NEWTON_CG_MAX_ITERATIONS,

@@ -20,10 +20,12 @@
 //! With the defaults ([`NewtonParams::default`]) a solve is: from x⁰, up to 100 iterations, each
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
 //! positive definite), the step −H⁻¹∇Φ shortened by halving (up to 40 times) until Φ falls by at
-//! least 1e-4 of what the linear model predicts (Armijo), until ‖∇Φ‖ ≤ 1e-8 ‖∇Φ(x⁰)‖. Nothing
+//! least 1e-4 of what the linear model predicts (Armijo), until a step's size is at most
+//! [`DEFAULT_STEP_TOLERANCE`] ([`Convergence::StepSize`]; for backward Euler 1e-4 m/s). Nothing
 //! else: these defaults were chosen on a table of scenes (cloth-10 to cloth-160, beam-4, beam-8
-//! and SCENES.md's eight hard cases; `benches/results/issue15-newton-default.md`), on which
-//! this plain Newton is as fast as or faster than every variant tried except on the crushed cloth.
+//! and the eight hard cases; `benches/results/issue15-newton-default.md`), on
+//! which this plain Newton is as fast as or faster than every variant tried except on the crushed
+//! cloth.
 //!
 //! Opt-in, after every accepted step the problem may relax the iterate ([`NewtonProblem::relax`],
 //! [`Relaxation::BUCKLING`]): for backward Euler, Gauss–Seidel sweeps of per-vertex Newton
@@ -37,13 +39,25 @@
 //! which problems implement without the cancellation of subtracting two values of Φ.
 //!
 //! # Stops
-//! A solve is converged ([`StopReason::is_converged`]) only if ‖∇Φ‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖
-//! ([`StopReason::Converged`]) or the gradient is at its proven rounding floor,
-//! ‖∇Φ‖ ≤ [`NewtonProblem::gradient_round_off`] ([`StopReason::RoundOff`]: the tolerance asked for
-//! is below what the arithmetic resolves). A shortened step that lowers Φ by no more than its
-//! round-off while the gradient is above that floor ends the solve as [`StopReason::Stagnated`],
-//! not converged; the iteration limit as [`StopReason::IterationLimit`]; a non-finite Φ or
-//! gradient as [`NewtonError::NonFinite`] with [`StopReason::NonFinite`] in its report.
+//! A solve converged if and only if it stops with [`StopReason::Converged`]
+//! ([`StopReason::is_converged`]): its criterion ([`NewtonParams::convergence`]) holds.
+//! - [`Convergence::StepSize`] (the default): a Newton step Δ of a matrix without the mass shift
+//!   has [`NewtonProblem::step_size`] ≤ `tolerance` (the step is taken if the line search accepts
+//!   it), or the gradient is exactly zero. Its quantity is in the problem's unit (backward Euler:
+//!   m/s) and does not vanish with the gradient's scale.
+//! - [`Convergence::RelativeGradient`]: ‖∇Φ‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖.
+//!
+//! Every other stop is not converged: a line search that finds no decrease along a descent
+//! direction while the gradient is at its proven rounding floor,
+//! ‖∇Φ‖ ≤ [`NewtonProblem::gradient_round_off`], is [`StopReason::RoundOff`] (the criterion asked
+//! for is below what the arithmetic resolves); a shortened step that lowers Φ by no more than its
+//! round-off is [`StopReason::RoundOff`] at that floor and [`StopReason::Stagnated`] above it; the
+//! iteration limit is [`StopReason::IterationLimit`]; a non-finite Φ or gradient
+//! [`NewtonError::NonFinite`] with [`StopReason::NonFinite`] in its report.
+//! [`NewtonReport::residual`] is the criterion's own quantity, so the flag and the number agree.
+//!
+//! Every line search starts at the longest step the problem allows
+//! ([`NewtonProblem::max_step_length`]), so that an iterate never crosses a contact barrier.
 //!
 //! # Parameters
 //! [`NewtonParams::validate`] checks every field (and the nested [`Relaxation`] and
@@ -107,6 +121,19 @@ pub trait NewtonProblem {
     /// estimate: every failed line search is an error).
     fn gradient_round_off(&mut self, _x: &[f64]) -> f64 {
         0.0
+    }
+    /// The size of a step Δ of the unknowns in the problem's own unit, which
+    /// [`Convergence::StepSize`] compares with the tolerance. Backward Euler: the largest vertex
+    /// displacement |Δ_v| divided by h (m/s). Default: the largest |Δ_i|, in the unknowns' unit.
+    fn step_size(&self, step: &[f64]) -> f64 {
+        step.iter().fold(0.0, |m: f64, s| m.max(s.abs()))
+    }
+    /// The longest step length α ∈ (0, 1] along `step` from `x` that the problem allows: every
+    /// line search starts there. A problem whose Φ is +∞ beyond a surface (backward Euler with
+    /// contact barriers) returns a share of the first α at which a vertex would reach an
+    /// obstacle, so that no trial point crosses one. Default 1.
+    fn max_step_length(&mut self, _x: &[f64], _step: &[f64]) -> f64 {
+        1.0
     }
     /// The Hessian's sparsity pattern (never changes; every diagonal entry must be stored).
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize>;
@@ -316,6 +343,7 @@ impl Relaxation {
     /// the elimination on ([`Relaxation::validate`] checks them).
     pub fn inner_params(&self) -> NewtonParams {
         NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: self.region_tolerance,
             max_iterations: self.region_iterations,
             relaxation: self.inner(),
@@ -425,7 +453,12 @@ pub struct RelaxationWork {
 /// Settings of [`Newton`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewtonParams {
-    /// Stop when ‖∇Φ(x)‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖. Default 1e-8 (1e-10 for reference solutions).
+    /// What `tolerance` bounds. Default [`Convergence::StepSize`].
+    pub convergence: Convergence,
+    /// The tolerance of [`NewtonParams::convergence`], in its unit: for [`Convergence::StepSize`]
+    /// the problem's step measure ([`NewtonProblem::step_size`]; backward Euler: m/s), default
+    /// [`DEFAULT_STEP_TOLERANCE`]; for [`Convergence::RelativeGradient`] dimensionless (1e-8 is
+    /// usual, 1e-10 for reference solutions).
     pub tolerance: f64,
     /// Iteration limit. Default 100 (cloth-40 from rest needs up to 51 in one step where it buckles).
     pub max_iterations: usize,
@@ -453,6 +486,40 @@ pub struct NewtonParams {
     pub relaxation: Relaxation,
     /// Factorisation settings.
     pub cholesky: CholeskyParams,
+}
+
+/// The default tolerance of [`Convergence::StepSize`]: 1e-4 in the problem's step measure, for
+/// backward Euler m/s (a Newton step that moves no vertex by more than 1e-4 m/s · h; the step is
+/// then taken, so what is left is far smaller). Chosen on cloth-40, cloth-40-stiff and bunny-drop
+/// runs: their energies after 1 s agree with 1e-5 m/s runs to 3e-10 of their size, with 5-35 %
+/// fewer iterations; 1e-3 m/s moved cloth-40's by 6e-6 (docs/contact.md).
+pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-4;
+
+/// When a Newton solve has converged (see the module documentation's "Stops").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Convergence {
+    /// The Newton step is small: [`NewtonProblem::step_size`] of Δ = −H⁻¹∇Φ is at most the
+    /// tolerance. For backward Euler the step size is the largest vertex displacement of the step
+    /// divided by h (m/s): a scale that does not vanish with the gradient (a body in free fall has
+    /// no gradient at its inertial target, and a gradient relative to it means nothing). Tested
+    /// only on steps whose matrix is not shifted by the masses (the exact Hessian, or a blend with
+    /// the convexified one, β ≤ 1), where Δ estimates the distance to the solution; the step is
+    /// then still taken when the line search accepts it.
+    #[default]
+    StepSize,
+    /// ‖∇Φ(x)‖ ≤ tolerance · ‖∇Φ(x⁰)‖ (dimensionless), also met by ∇Φ(x⁰) = 0: the speed-vs-error
+    /// measurements' setting, comparable across solvers; not a physical scale.
+    RelativeGradient,
+}
+
+impl Convergence {
+    /// A short name for reports: `step-size` or `relative-gradient`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Convergence::StepSize => "step-size",
+            Convergence::RelativeGradient => "relative-gradient",
+        }
+    }
 }
 
 /// How Newton treats an indefinite Hessian (see the module documentation).
@@ -542,7 +609,8 @@ impl NewtonParams {
 impl Default for NewtonParams {
     fn default() -> Self {
         NewtonParams {
-            tolerance: 1e-8,
+            convergence: Convergence::StepSize,
+            tolerance: DEFAULT_STEP_TOLERANCE,
             max_iterations: 100,
             armijo: 1e-4,
             max_halvings: 40,
@@ -575,6 +643,8 @@ pub struct NewtonIteration {
     pub negative_eigenvalues: usize,
     /// Line-search step length α.
     pub step_length: f64,
+    /// [`NewtonProblem::step_size`] of the full step Δ (before the line search).
+    pub step_size: f64,
 }
 
 /// The account of a Newton solve.
@@ -620,6 +690,11 @@ pub struct NewtonReport {
     pub relaxation_time: Duration,
     /// Why it stopped.
     pub stop: StopReason,
+    /// The criterion the solve was run to ([`NewtonParams::convergence`]).
+    pub convergence: Convergence,
+    /// [`NewtonProblem::step_size`] of the last Newton step computed (its full length Δ, whether
+    /// or not it was taken); 0 if the solve started at a stationary point, ∞ before any step.
+    pub step_size: f64,
     /// Wall time, and the part spent in numeric factorisations.
     pub wall_time: Duration,
     /// Time in numeric factorisations.
@@ -651,6 +726,8 @@ impl NewtonReport {
             region_factorizations: 0,
             relaxation_time: Duration::ZERO,
             stop: StopReason::IterationLimit,
+            convergence: Convergence::StepSize,
+            step_size: f64::INFINITY,
             wall_time: Duration::ZERO,
             factor_time: Duration::ZERO,
         }
@@ -672,6 +749,17 @@ impl NewtonReport {
         self.history
             .last()
             .map_or(self.initial_gradient, |h| h.gradient)
+    }
+
+    /// The criterion's own quantity at the end of the solve ([`NewtonReport::convergence`]): the
+    /// last step size ([`NewtonReport::step_size`], e.g. m/s) or the relative gradient
+    /// ([`NewtonReport::gradient`]). The solve converged if and only if it stopped with
+    /// [`StopReason::Converged`], and then this is at most the tolerance.
+    pub fn residual(&self) -> f64 {
+        match self.convergence {
+            Convergence::StepSize => self.step_size,
+            Convergence::RelativeGradient => self.gradient(),
+        }
     }
 }
 
@@ -765,6 +853,8 @@ pub struct Newton {
 struct Accepted {
     alpha: f64,
     change: f64,
+    /// The longest step length the problem allowed ([`NewtonProblem::max_step_length`]).
+    longest: f64,
 }
 
 impl Newton {
@@ -997,14 +1087,22 @@ impl Newton {
         slope: f64,
     ) -> Option<Accepted> {
         let p = self.params;
-        let mut alpha = 1.0;
+        let longest = problem.max_step_length(x, &self.step).min(1.0);
+        if longest.is_nan() || longest <= 0.0 {
+            return None;
+        }
+        let mut alpha = longest;
         for _ in 0..=p.max_halvings {
             for ((t, x), s) in self.trial.iter_mut().zip(x).zip(&self.step) {
                 *t = x + alpha * s;
             }
             let change = problem.objective_change(x, &self.trial);
             if change.is_finite() && change <= p.armijo * alpha * slope {
-                return Some(Accepted { alpha, change });
+                return Some(Accepted {
+                    alpha,
+                    change,
+                    longest,
+                });
             }
             alpha *= 0.5;
         }
@@ -1062,6 +1160,8 @@ impl Newton {
         let g0 = dot(&self.g, &self.g).sqrt();
         let scale = if g0 > 0.0 { 1.0 / g0 } else { 1.0 };
         report.reset(phi);
+        report.convergence = p.convergence;
+        let step_test = p.convergence == Convergence::StepSize;
         // Every solve starts from the exact Hessian: a shift earned in an earlier solve says nothing
         // about this one.
         self.shift = 0.0;
@@ -1075,7 +1175,13 @@ impl Newton {
                 finish(report, StopReason::NonFinite);
                 return Err(Failure::NonFinite);
             }
-            if gradient <= p.tolerance || g0 == 0.0 {
+            if gradient == 0.0 || g0 == 0.0 {
+                // A stationary point exactly: the Newton step is zero.
+                report.step_size = 0.0;
+                finish(report, StopReason::Converged);
+                return Ok(());
+            }
+            if !step_test && gradient <= p.tolerance {
                 finish(report, StopReason::Converged);
                 return Ok(());
             }
@@ -1096,8 +1202,9 @@ impl Newton {
             let mut failed = 0;
             // Set when a search below has left the positive definite factor of the current shift.
             let mut held_definite = false;
-            // The accepted step, the negative eigenvalues of its matrix and its slope gᵀΔ.
-            let (accepted, negative, step_slope) = loop {
+            // The accepted step, the negative eigenvalues of its matrix, its slope gᵀΔ, and
+            // whether it met the step-size criterion.
+            let (accepted, negative, step_slope, small) = loop {
                 let negative = if held_definite {
                     held_definite = false;
                     Some(0)
@@ -1122,9 +1229,26 @@ impl Newton {
                     }
                     self.cholesky.solve_slice(&mut self.step);
                     let slope = dot(&self.g, &self.step);
+                    let size = problem.step_size(&self.step);
+                    // Only a step of a matrix without the mass shift estimates the distance to
+                    // the solution (a shift shortens it at will).
+                    let unshifted = negative == 0
+                        && match p.indefinite {
+                            IndefinitePolicy::ConvexBlend => self.shift <= 1.0,
+                            _ => self.shift == 0.0,
+                        };
+                    let small = step_test && unshifted && size <= p.tolerance;
+                    report.step_size = size;
                     if slope < 0.0 {
                         if let Some(accepted) = self.line_search(problem, x, slope) {
-                            break (accepted, negative, slope);
+                            break (accepted, negative, slope, small);
+                        }
+                        if small {
+                            // The criterion holds at x: what is left is below the tolerance (and,
+                            // as no step of it lowers Φ, at the resolution of Φ).
+                            report.failed_factorizations += failed;
+                            finish(report, StopReason::Converged);
+                            return Ok(());
                         }
                         if negative == 0 {
                             report.failed_factorizations += failed;
@@ -1164,7 +1288,11 @@ impl Newton {
                 }
             };
             report.failed_factorizations += failed;
-            let Accepted { alpha, change } = accepted;
+            let Accepted {
+                alpha,
+                change,
+                longest,
+            } = accepted;
             x.copy_from_slice(&self.trial);
             // The quadratic model of an exact, positive definite Newton step predicts the change
             // ½ gᵀΔ; agreement within the tolerance means Newton is in its quadratic regime.
@@ -1210,11 +1338,16 @@ impl Newton {
                 failed_factorizations: failed,
                 negative_eigenvalues: negative,
                 step_length: alpha,
+                step_size: report.step_size,
             });
+            if small {
+                finish(report, StopReason::Converged);
+                return Ok(());
+            }
             if stagnated {
                 let floor = problem.gradient_round_off(x);
                 let norm = dot(&self.g, &self.g).sqrt();
-                let stop = if gradient <= p.tolerance {
+                let stop = if !step_test && gradient <= p.tolerance {
                     StopReason::Converged
                 } else if norm <= floor {
                     StopReason::RoundOff
@@ -1225,9 +1358,11 @@ impl Newton {
                 return Ok(());
             }
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.
-            if alpha == 1.0 {
+            // (Full and short relative to the longest step the problem allowed: a step cut short
+            // by an obstacle says nothing about the model.)
+            if alpha == longest {
                 self.shift = self.lower_shift(p.indefinite);
-            } else if alpha < 0.25 {
+            } else if alpha < 0.25 * longest {
                 self.shift = self.raise_shift(p.indefinite).min(p.max_shift);
             }
         }

@@ -7,20 +7,25 @@
 //!   iteration).
 //! - Forcing terms (Eisenstat & Walker 1996, choice 2): CG stops at a relative residual
 //!   ηₖ = γ (‖gₖ‖ / ‖gₖ₋₁‖)^α, with their safeguard ηₖ ≥ γ ηₖ₋₁^α when that exceeds 0.1, at most
-//!   η_max, and at least ½ tolerance·‖g₀‖/‖gₖ‖ (no solve finer than the outer tolerance needs).
+//!   η_max, and, under the relative-gradient criterion, at least ½ tolerance·‖g₀‖/‖gₖ‖ (no solve
+//!   finer than the outer tolerance needs).
 //!   Far from x* the systems are solved loosely; near it η → 0 and convergence is superlinear.
 //! - Negative curvature (Φ is not convex where springs are compressed): CG stops at the first
 //!   direction d with dᵀHd ≤ 0 and keeps the step built so far (Steihaug's truncation, with a line
 //!   search in place of the trust region); if that happens at the first CG iteration, the step is
 //!   the preconditioned steepest descent −P g. Every step is thus a descent direction.
 //! - A backtracking Armijo search on the exactly computed change of Φ accepts each step, so Φ never
-//!   increases. It stops as [`Newton`](crate::Newton) does: ‖∇Φ‖ ≤ tolerance · ‖∇Φ(x⁰)‖, the
-//!   iteration limit, or a failed search at the gradient's rounding error
-//!   ([`StopReason::RoundOff`], converged as far as the arithmetic resolves); a failed search above it is an error.
+//!   increases; it starts at the longest step the problem allows
+//!   ([`NewtonProblem::max_step_length`]: no iterate crosses an obstacle). It converges as
+//!   [`Newton`](crate::Newton) does ([`NewtonCgParams::convergence`]): by default when a step that
+//!   CG did not truncate has [`NewtonProblem::step_size`] at most the tolerance (backward Euler:
+//!   m/s), or ‖∇Φ‖ ≤ tolerance · ‖∇Φ(x⁰)‖. It stops unconverged at the iteration limit or at a
+//!   failed search at the gradient's rounding error ([`StopReason::RoundOff`]); a failed search
+//!   above it is an error.
 
 use std::time::{Duration, Instant};
 
-use crate::newton::NewtonProblem;
+use crate::newton::{Convergence, NewtonProblem};
 use crate::operator::{dot, LinearOperator, Preconditioner, Symmetric};
 use crate::params::{self, ParamError};
 use crate::report::StopReason;
@@ -30,7 +35,11 @@ use crate::report::StopReason;
 pub struct NewtonCgParams {
     /// Outer (Newton) iterations at most. Default 100.
     pub max_iterations: usize,
-    /// Stop when ‖∇Φ(x)‖ ≤ `tolerance` · ‖∇Φ(x⁰)‖ (dimensionless). Default 1e-8, as Newton's.
+    /// What `tolerance` bounds (as [`crate::NewtonParams::convergence`]). Default
+    /// [`Convergence::StepSize`].
+    pub convergence: Convergence,
+    /// The tolerance, in the criterion's unit (step size: m/s for backward Euler; relative
+    /// gradient: dimensionless). Default [`crate::DEFAULT_STEP_TOLERANCE`], as Newton's.
     pub tolerance: f64,
     /// η_max, the loosest relative residual a CG solve stops at, in (0, 1). Default 0.5.
     pub forcing_max: f64,
@@ -50,7 +59,8 @@ impl Default for NewtonCgParams {
     fn default() -> Self {
         NewtonCgParams {
             max_iterations: 100,
-            tolerance: 1e-8,
+            convergence: Convergence::StepSize,
+            tolerance: crate::DEFAULT_STEP_TOLERANCE,
             forcing_max: 0.5,
             forcing_gamma: 0.9,
             forcing_alpha: 2.0,
@@ -143,6 +153,11 @@ pub struct NewtonCgReport {
     pub line_search_trials: usize,
     /// Why it stopped.
     pub stop: StopReason,
+    /// The criterion it was run to.
+    pub convergence: Convergence,
+    /// [`NewtonProblem::step_size`] of the last step computed (∞ before any; 0 at a stationary
+    /// start).
+    pub step_size: f64,
     /// Wall time of the solve.
     pub wall_time: Duration,
 }
@@ -151,6 +166,14 @@ impl NewtonCgReport {
     /// The last relative gradient norm (NaN for an empty report).
     pub fn gradient(&self) -> f64 {
         self.gradients.last().copied().unwrap_or(f64::NAN)
+    }
+
+    /// The criterion's own quantity: the last step size or the relative gradient.
+    pub fn residual(&self) -> f64 {
+        match self.convergence {
+            Convergence::StepSize => self.step_size,
+            Convergence::RelativeGradient => self.gradient(),
+        }
     }
 }
 
@@ -242,8 +265,11 @@ impl NewtonCg {
             objective_change: 0.0,
             line_search_trials: 0,
             stop: StopReason::IterationLimit,
+            convergence: p.convergence,
+            step_size: f64::INFINITY,
             wall_time: Duration::ZERO,
         };
+        let step_test = p.convergence == Convergence::StepSize;
         let phi0 = problem.objective(x);
         problem.gradient(x, &mut self.g);
         let g0 = norm(&self.g);
@@ -260,7 +286,12 @@ impl NewtonCg {
                 finish(&mut report, StopReason::NonFinite);
                 return Err(NewtonCgError::NonFinite { report });
             }
-            if g0 == 0.0 || gradient <= p.tolerance {
+            if g0 == 0.0 || gradient == 0.0 {
+                report.step_size = 0.0;
+                finish(&mut report, StopReason::Converged);
+                return Ok(report);
+            }
+            if !step_test && gradient <= p.tolerance {
                 finish(&mut report, StopReason::Converged);
                 return Ok(report);
             }
@@ -273,10 +304,16 @@ impl NewtonCg {
             }
             previous_gradient = gradient;
             let hessian = Symmetric(problem.hessian(x));
+            let truncations = report.negative_curvature;
             if !self.truncated_cg(&hessian, preconditioner, forcing, &mut report) {
                 finish(&mut report, StopReason::NonFinite);
                 return Err(NewtonCgError::NonFinite { report });
             }
+            report.step_size = problem.step_size(&self.step);
+            // A step CG truncated at negative curvature does not estimate the distance to x*.
+            let small = step_test
+                && report.negative_curvature == truncations
+                && report.step_size <= p.tolerance;
             let slope = dot(&self.g, &self.step);
             let accepted = if slope < 0.0 {
                 self.line_search(problem, x, slope, &mut report)
@@ -284,6 +321,10 @@ impl NewtonCg {
                 None
             };
             let Some((alpha, change)) = accepted else {
+                if small {
+                    finish(&mut report, StopReason::Converged);
+                    return Ok(report);
+                }
                 if norm(&self.g) <= problem.gradient_round_off(x) {
                     finish(&mut report, StopReason::RoundOff);
                     return Ok(report);
@@ -298,6 +339,10 @@ impl NewtonCg {
             report.iterations += 1;
             report.objective_change += change;
             report.gradients.push(norm(&self.g) * scale);
+            if small {
+                finish(&mut report, StopReason::Converged);
+                return Ok(report);
+            }
         }
     }
 
@@ -310,8 +355,12 @@ impl NewtonCg {
         if safeguard > 0.1 {
             eta = eta.max(safeguard);
         }
-        // No finer than the outer tolerance needs: a relative residual η leaves ‖g‖ ≈ η‖gₖ‖.
-        eta.max(0.5 * p.tolerance / gradient).min(p.forcing_max)
+        // No finer than a relative-gradient tolerance needs: a relative residual η leaves
+        // ‖g‖ ≈ η‖gₖ‖.
+        if p.convergence == Convergence::RelativeGradient {
+            eta = eta.max(0.5 * p.tolerance / gradient);
+        }
+        eta.min(p.forcing_max)
     }
 
     /// step ≈ −H⁻¹ g by preconditioned CG from 0 to the relative residual `forcing`, truncated at
@@ -379,7 +428,10 @@ impl NewtonCg {
         slope: f64,
         report: &mut NewtonCgReport,
     ) -> Option<(f64, f64)> {
-        let mut alpha = 1.0;
+        let mut alpha = problem.max_step_length(x, &self.step).min(1.0);
+        if alpha.is_nan() || alpha <= 0.0 {
+            return None;
+        }
         for _ in 0..=self.params.max_halvings {
             for ((t, x), s) in self.trial.iter_mut().zip(x).zip(&self.step) {
                 *t = x + alpha * s;

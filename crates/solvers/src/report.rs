@@ -4,16 +4,17 @@ use std::time::Duration;
 
 use crate::params::{ParamError, HISTORY_RESERVE};
 
-/// Why an iterative solver stopped. Only [`StopReason::Converged`] and [`StopReason::RoundOff`]
-/// mean the solution asked for was found ([`StopReason::is_converged`]).
+/// Why an iterative solver stopped. Only [`StopReason::Converged`] means the solution asked for
+/// was found ([`StopReason::is_converged`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum StopReason {
     /// The residual met the requested tolerance.
     Converged,
     /// The residual is at its proven rounding floor (the solver's problem bounds the rounding
-    /// error of its residual, and the residual is below that bound): the tolerance asked for is
-    /// below what the arithmetic resolves, and the iterate is as converged as it can be.
+    /// error of its residual, and the residual is below that bound) while the criterion does not
+    /// hold: the tolerance asked for is below what the arithmetic resolves. Not converged; the
+    /// iterate is as close as the arithmetic gets.
     RoundOff,
     /// The iteration limit was reached first: not converged.
     IterationLimit,
@@ -25,9 +26,15 @@ pub enum StopReason {
 }
 
 impl StopReason {
-    /// Whether the solve reached its goal: the tolerance ([`StopReason::Converged`]) or the proven
-    /// rounding floor ([`StopReason::RoundOff`]).
+    /// Whether the solve reached its goal: its criterion holds ([`StopReason::Converged`]).
     pub fn is_converged(self) -> bool {
+        matches!(self, StopReason::Converged)
+    }
+
+    /// Whether the solve is as converged as the arithmetic allows: [`StopReason::Converged`], or
+    /// [`StopReason::RoundOff`] (the criterion is below the rounding floor). For reference
+    /// solutions run to a tolerance below what the arithmetic resolves.
+    pub fn is_at_resolution(self) -> bool {
         matches!(self, StopReason::Converged | StopReason::RoundOff)
     }
 

@@ -3,6 +3,7 @@
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::{generators, SpringMesh};
+use hooke_solvers::Convergence;
 use hooke_solvers::{
     BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
     StopReason,
@@ -67,6 +68,7 @@ fn both(mesh: &SpringMesh<3>, pinned: &[u32], h: f64) -> (Vec<V>, Vec<V>, f64) {
     let mut newton = Newton::new(
         step.pattern(),
         NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-12,
             ..Default::default()
         },
@@ -145,6 +147,7 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
     let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
     let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
     let exact = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-10,
         ..Default::default()
     };
@@ -156,6 +159,7 @@ fn newton_converges_fast_through_the_buckling_cloth_40_run() {
     for s in 0..=10 {
         if s == 10 {
             newton.params.tolerance = 1e-8;
+            newton.params.convergence = Convergence::RelativeGradient;
         }
         let y = inertial_target(&x, &pinned, |i, _| v[i] * h + gravity * (h * h));
         step.set_step(&y, &x, &mut xf);
@@ -261,6 +265,7 @@ fn the_dashpot_term_is_consistent_and_enters_the_step() {
     let mut newton = Newton::new(
         step.pattern(),
         NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-12,
             ..Default::default()
         },
@@ -317,6 +322,7 @@ fn counter_forces_give_the_reduced_newton_step() {
         V::new(0.1, 0.3, 0.0) * h + g * (h * h)
     });
     let params = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-10,
         ..Default::default()
     };

@@ -2,6 +2,7 @@
 //! reach Newton's minimiser and never raise Φ.
 
 use hooke_mesh::{generators, SpringMesh};
+use hooke_solvers::Convergence;
 use hooke_solvers::{Lbfgs, LbfgsParams, NewtonProblem, StopReason};
 use proptest::prelude::*;
 
@@ -13,6 +14,7 @@ fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32], amplitude: f64) {
     let mut s = step(mesh, pinned, 1.0 / 30.0, amplitude);
     let solution = newton_solution(&mut s);
     let params = LbfgsParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-11,
         max_iterations: 2000,
         ..Default::default()
@@ -62,6 +64,7 @@ fn invalid_settings_are_refused_with_the_field_named() {
             ..Default::default()
         },
         LbfgsParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: f64::NAN,
             ..Default::default()
         },

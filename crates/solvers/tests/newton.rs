@@ -2,6 +2,7 @@
 //! (independently of hooke-assembly) and handed over in a fixed sparse pattern.
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMatRef, Triplet};
+use hooke_solvers::Convergence;
 use hooke_solvers::{Newton, NewtonError, NewtonParams, NewtonProblem, StopReason};
 use nalgebra::{Matrix3, Vector3};
 
@@ -178,6 +179,7 @@ fn newton_converges_from_a_crushed_start_with_counted_shifts() {
     let y = start(6, 0.3);
     let mut problem = BackwardEuler::grid(6, 1e3, 1.0 / 30.0, y.clone());
     let params = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-10,
         max_iterations: 200,
         ..Default::default()
@@ -226,6 +228,7 @@ fn newton_converges_quadratically_on_a_smooth_case() {
     let mut problem = BackwardEuler::grid(5, 1e3, 1.0 / 30.0, y.clone());
     let solve = |problem: &mut BackwardEuler, iterations: usize, tolerance: f64| {
         let params = NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance,
             max_iterations: iterations,
             ..Default::default()

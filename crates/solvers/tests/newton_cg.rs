@@ -2,6 +2,7 @@
 //! factor): it reaches Newton's minimiser, never raises Φ, and converges superlinearly near x*.
 
 use hooke_mesh::{generators, SpringMesh};
+use hooke_solvers::Convergence;
 use hooke_solvers::{NewtonCg, NewtonCgParams, NewtonProblem, StopReason};
 use proptest::prelude::*;
 
@@ -32,6 +33,7 @@ fn solve(
 
 fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32]) {
     let params = NewtonCgParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-11,
         ..Default::default()
     };
@@ -62,6 +64,7 @@ fn newton_cg_reaches_newtons_solution_on_beam_2() {
 fn newton_cg_converges_superlinearly_on_a_smooth_case() {
     let mesh = generators::beam(2).unwrap();
     let params = NewtonCgParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-12,
         ..Default::default()
     };
@@ -101,6 +104,7 @@ fn invalid_settings_are_refused_with_the_field_named() {
         ),
         (
             NewtonCgParams {
+                convergence: Convergence::RelativeGradient,
                 tolerance: f64::INFINITY,
                 ..defaults
             },

@@ -5,6 +5,7 @@
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
+use hooke_solvers::Convergence;
 use hooke_solvers::{
     BackwardEulerStep, BlockJacobi, CgParams, ChebyshevParams, ChebyshevPd, CholeskyError,
     CholeskyParams, ConjugateGradient, Identity, IndefinitePolicy, Jacobi, JacobiParams, Lbfgs,
@@ -484,6 +485,7 @@ fn the_values_of_issue_19_are_refused_with_the_field_and_its_range() {
         ),
         (
             NewtonParams {
+                convergence: Convergence::RelativeGradient,
                 tolerance: f64::NAN,
                 ..d
             },

@@ -4,6 +4,7 @@
 use faer::sparse::SparseColMatRef;
 use hooke_assembly::{Definiteness, FreeDofs};
 use hooke_mesh::generators;
+use hooke_solvers::Convergence;
 use hooke_solvers::{
     BackwardEulerStep, CholeskyParams, Newton, NewtonParams, NewtonProblem, Relaxation,
     SparseCholesky, StopReason,
@@ -217,6 +218,7 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
     let mut newton = Newton::new(
         step.pattern(),
         NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-12,
             ..NewtonParams::default()
         },
@@ -342,6 +344,7 @@ fn trusted_exact_steps_skip_the_relaxation() {
     } = case(6, 1.2, 0.01, 0.0, false);
     for (trusted_model, skips) in [(Relaxation::BUCKLING.trusted_model, true), (0.0, false)] {
         let params = NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: 1e-10,
             relaxation: Relaxation {
                 trusted_model,

@@ -3,9 +3,9 @@
 use std::time::{Duration, Instant};
 
 use hooke_solvers::{
-    BackwardEulerStep, ChebyshevParams, ChebyshevPd, Lbfgs, LbfgsParams, Newton, NewtonCg,
-    NewtonCgParams, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation,
-    StopReason,
+    BackwardEulerStep, ChebyshevParams, ChebyshevPd, Convergence, Lbfgs, LbfgsParams, Newton,
+    NewtonCg, NewtonCgParams, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    Relaxation, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -361,6 +361,12 @@ impl Runner {
                 });
                 newton.params.max_iterations = max_iterations;
                 newton.params.tolerance = tolerance;
+                // newton-tol:T and newton:K keep the relative gradient's meaning (comparable
+                // across solvers); the default row is the library's default criterion.
+                newton.params.convergence = match setting {
+                    Setting::Default => NewtonParams::default().convergence,
+                    _ => Convergence::RelativeGradient,
+                };
                 objective.set_step(&problem.y, &problem.start.positions, unknowns);
                 let report = newton
                     .minimize(objective.as_mut(), unknowns)
@@ -425,6 +431,10 @@ impl Runner {
                         let params = LbfgsParams {
                             max_iterations,
                             tolerance,
+                            convergence: match setting {
+                                Setting::Default => defaults.convergence,
+                                _ => Convergence::RelativeGradient,
+                            },
                             ..defaults
                         };
                         let mut lbfgs =
@@ -449,6 +459,10 @@ impl Runner {
                         let params = NewtonCgParams {
                             max_iterations,
                             tolerance,
+                            convergence: match setting {
+                                Setting::Default => defaults.convergence,
+                                _ => Convergence::RelativeGradient,
+                            },
                             ..defaults
                         };
                         let mut solver =

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use hooke_assembly::FreeDofs;
-use hooke_solvers::{BackwardEulerStep, Newton, NewtonParams, NewtonProblem};
+use hooke_solvers::{BackwardEulerStep, Convergence, Newton, NewtonParams, NewtonProblem};
 use nalgebra::Vector3;
 
 use crate::bench::BenchError;
@@ -252,6 +252,7 @@ fn start_state(
     let settings = Settings {
         integrator: Integrator::Newton,
         newton: NewtonParams {
+            convergence: Convergence::RelativeGradient,
             tolerance: REFERENCE_TOLERANCE,
             max_iterations: REFERENCE_MAX_ITERATIONS,
             ..NewtonParams::default()
@@ -271,7 +272,7 @@ fn start_state(
             report.wall_time.as_secs_f64(),
             begin.elapsed().as_secs_f64()
         ));
-        if !summary.stop.is_converged() {
+        if !summary.stop.is_at_resolution() {
             return Err(BenchError::Reference {
                 scene: setup.name.clone(),
                 reason: format!(
@@ -301,6 +302,7 @@ fn solve_reference(
     let mut unknowns = vec![0.0; objective.dim()];
     objective.set_step(y, &start.positions, &mut unknowns);
     let params = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: REFERENCE_TOLERANCE,
         max_iterations: REFERENCE_MAX_ITERATIONS,
         ..NewtonParams::default()
@@ -313,7 +315,7 @@ fn solve_reference(
     let report = newton
         .minimize(&mut objective, &mut unknowns)
         .map_err(|e| fail(e.to_string()))?;
-    if !report.stop.is_converged() {
+    if !report.stop.is_at_resolution() {
         return Err(fail(format!(
             "Newton did not converge ({}, at most {REFERENCE_MAX_ITERATIONS} iterations) with \
              relative gradient {:e}",

@@ -74,7 +74,8 @@ pub struct SolverSettingsRecord {
     /// Iteration limit (linear solver, Newton) or iterations per step (projective dynamics).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
-    /// Relative tolerance (linear residual, Newton gradient, PD position change).
+    /// Tolerance (linear solver: relative residual; newton, newton-cg, lbfgs: step size, m/s; PD:
+    /// position change, m).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
     /// Newton's relaxation preset: `none` or `buckling` (absent for other settings).
@@ -107,9 +108,18 @@ pub struct StepRecord {
     /// Potential energy (springs plus conservative external forces such as gravity), in joules (J).
     #[serde(deserialize_with = "f64_or_nan")]
     pub potential_energy: f64,
-    /// Kinetic plus potential energy, in joules (J).
+    /// The contact barrier's energy, in joules (J): present for the integrators whose contact is
+    /// part of their objective (newton, newton-cg, lbfgs) on scenes with obstacles, absent
+    /// otherwise and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_energy: Option<f64>,
+    /// Kinetic plus potential (plus contact, where present) energy, in joules (J).
     #[serde(deserialize_with = "f64_or_nan")]
     pub total_energy: f64,
+    /// The smallest signed distance of a free vertex from an obstacle, in metres (m): negative
+    /// inside one; absent for scenes without obstacles and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_distance: Option<f64>,
     /// Largest spring stretch ratio maxₛ |r|/l (current over rest length), dimensionless:
     /// 1 at rest, above 1 when stretched.
     #[serde(deserialize_with = "f64_or_nan")]
@@ -120,13 +130,14 @@ pub struct StepRecord {
     /// The solver's final residual: the quantity, with its unit, that the run's
     /// `solver_residual` record names; `None` for explicit integrators.
     pub solver_residual: Option<f64>,
-    /// Why the solver stopped: `converged`, `round-off` (at the proven rounding floor: converged),
-    /// `iteration-limit`, `stagnated` or `non-finite`; `None` for explicit integrators. A linear
+    /// Why the solver stopped: `converged` (its criterion holds), `round-off` (at the proven
+    /// rounding floor above the criterion: not converged), `iteration-limit`, `stagnated` or
+    /// `non-finite`; `None` for explicit integrators. A linear
     /// solve that stopped at its limit is kept and marked so here.
     #[serde(default)]
     pub solver_stop: Option<String>,
-    /// Whether the solver converged in this step (`solver_stop` is `converged` or `round-off` in
-    /// every piece of the step); `None` for explicit integrators and in older files. Projective
+    /// Whether the solver converged in this step (`solver_stop` is `converged` in every piece of
+    /// the step, and `solver_residual` is within the tolerance); `None` for explicit integrators and in older files. Projective
     /// dynamics with its fixed iteration budget (tolerance 0) reports `false`.
     #[serde(default)]
     pub solver_converged: Option<bool>,
@@ -214,7 +225,9 @@ mod tests {
                     time: 1.0 / 30.0,
                     kinetic_energy: 0.125,
                     potential_energy: -0.5,
+                    contact_energy: None,
                     total_energy: -0.375,
+                    contact_distance: None,
                     max_stretch: 1.0625,
                     solver_iterations: Some(7),
                     solver_residual: Some(3.5e-11),
@@ -228,7 +241,9 @@ mod tests {
                     time: 2.0 / 30.0,
                     kinetic_energy: 0.25,
                     potential_energy: -0.75,
+                    contact_energy: None,
                     total_energy: -0.5,
+                    contact_distance: None,
                     max_stretch: 1.1,
                     solver_iterations: None,
                     solver_residual: None,

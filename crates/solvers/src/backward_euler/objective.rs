@@ -28,8 +28,14 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
             })
             .sum();
+        let contact = match &self.contact {
+            Some(contact) => contact.energy(self.free.free_vertices(), &self.x),
+            None => 0.0,
+        };
         inertia
-            + self.h * self.h * hooke_assembly::spring_energy(&self.springs, &self.x, self.parallel)
+            + self.h
+                * self.h
+                * (hooke_assembly::spring_energy(&self.springs, &self.x, self.parallel) + contact)
             + self.dashpot_potential(&self.x)
     }
 
@@ -81,7 +87,13 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             });
             0.5 * this.h * this.dashpot * sum
         };
-        inertia + self.h * self.h * energy + dashpot
+        let contact = match &self.contact {
+            Some(contact) => {
+                contact.energy_change(self.free.free_vertices(), &self.x, &self.trial_positions)
+            }
+            None => 0.0,
+        };
+        inertia + self.h * self.h * (energy + contact) + dashpot
     }
 
     fn gradient(&mut self, xf: &[f64], g: &mut [f64]) {
@@ -98,6 +110,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 self.force[i] -= f;
                 self.force[j] += f;
             }
+        }
+        if let Some(contact) = &self.contact {
+            // The contact force −∇E_c joins the spring forces.
+            contact.add_gradient(self.free.free_vertices(), &self.x, -1.0, &mut self.force);
         }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
@@ -141,6 +157,21 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             self.force[i] += f;
             self.force[j] += f;
         }
+        if let Some(contact) = &self.contact {
+            // The contact forces' magnitudes, per vertex (their rounding is relative to them).
+            for g in self.contact_scratch.iter_mut() {
+                *g = SVector::zeros();
+            }
+            contact.add_gradient(
+                self.free.free_vertices(),
+                &self.x,
+                1.0,
+                &mut self.contact_scratch,
+            );
+            for (f, g) in self.force.iter_mut().zip(&self.contact_scratch) {
+                *f += g.abs();
+            }
+        }
         let terms = self.max_degree as f64 + 2.0;
         let sum: f64 = self
             .free
@@ -156,6 +187,31 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             })
             .sum();
         terms * f64::EPSILON * sum.sqrt()
+    }
+
+    /// The largest vertex displacement of the step divided by h: m/s.
+    fn step_size(&self, step: &[f64]) -> f64 {
+        let largest = step
+            .chunks_exact(D)
+            .map(|c| c.iter().map(|v| v * v).sum::<f64>())
+            .fold(0.0, f64::max);
+        largest.sqrt() / self.h
+    }
+
+    /// With obstacles, [`super::TIME_OF_IMPACT_SHARE`] of the first time at which a free vertex
+    /// moving along the step would reach an obstacle (at most 1); 1 without.
+    fn max_step_length(&mut self, xf: &[f64], step: &[f64]) -> f64 {
+        if self.contact.is_none() {
+            return 1.0;
+        }
+        self.expand(xf);
+        let full = self.counter.is_some();
+        for (f, &v) in self.free.free_vertices().iter().enumerate() {
+            let o = Self::offset(full, f, v as usize);
+            self.contact_scratch[v as usize] = SVector::from_column_slice(&step[o..o + D]);
+        }
+        let contact = self.contact.as_ref().expect("checked above");
+        contact.max_step(self.free.free_vertices(), &self.x, &self.contact_scratch)
     }
 
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
@@ -218,6 +274,25 @@ impl<const D: usize> BackwardEulerStep<D> {
                 self.dashpot,
                 self.h,
                 &mut self.values,
+            );
+        }
+        if let Some(contact) = &self.contact {
+            // Per-vertex blocks: the obstacles are static.
+            let full = self.counter.is_some();
+            let (pattern, values, free) = (&self.pattern, &mut self.values, &self.free);
+            contact.for_each_hessian_block(
+                free.free_vertices(),
+                &self.x,
+                self.h * self.h,
+                definiteness,
+                |v, block| {
+                    let c = if full {
+                        v
+                    } else {
+                        free.free_index(v).expect("a free vertex")
+                    };
+                    pattern.add_diagonal_block(c, &block, values);
+                },
             );
         }
         if let Some(counter) = &self.counter {

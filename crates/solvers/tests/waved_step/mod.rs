@@ -3,6 +3,7 @@
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::SpringMesh;
+use hooke_solvers::Convergence;
 use hooke_solvers::{
     BackwardEulerStep, Newton, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
     StopReason,
@@ -43,6 +44,7 @@ pub fn step(mesh: &SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Ste
 pub fn newton_solution(s: &mut Step) -> Vec<f64> {
     let mut x = s.start.clone();
     let params = NewtonParams {
+        convergence: Convergence::RelativeGradient,
         tolerance: 1e-12,
         ..Default::default()
     };

@@ -1,0 +1,260 @@
+//! Contact inside backward Euler's objective (docs/contact.md), through the simulation API: no free
+//! vertex ever ends a frame inside an obstacle, Newton gains no energy from contact, a body at
+//! rest on the ground stays at rest, and the step-size criterion's flag and number agree.
+
+use hooke::sim::{
+    BarrierSettings, Contact, ExternalForce, Integrator, Scene, Settings, SimError, Simulation,
+    State,
+};
+use hooke::solvers::{Convergence, StopReason, DEFAULT_STEP_TOLERANCE};
+use nalgebra::Vector3;
+use proptest::prelude::*;
+
+const GRAVITY: Vector3<f64> = Vector3::new(0.0, -9.81, 0.0);
+
+/// cloth-N (k = 1e3 N/m, 1 kg) without pins, centred on x = z = 0, lifted to `height`, every vertex
+/// moving at `velocity`, with `contacts`, gravity and h = 1/30 s.
+fn drop(
+    n: usize,
+    height: f64,
+    velocity: Vector3<f64>,
+    contacts: Vec<Contact<3>>,
+) -> (Scene<3>, State<3>) {
+    let mesh = hooke::mesh::generators::cloth(n, 1e3).unwrap();
+    let scene = Scene::new(mesh, 1.0 / 30.0)
+        .unwrap()
+        .with_forces(vec![ExternalForce::Gravity {
+            acceleration: GRAVITY,
+        }])
+        .unwrap()
+        .with_contacts(contacts)
+        .unwrap();
+    let mut state = scene.initial_state();
+    for p in &mut state.positions {
+        *p += Vector3::new(-0.5, height, -0.5);
+    }
+    for v in &mut state.velocities {
+        *v = velocity;
+    }
+    (scene, state)
+}
+
+fn ground(height: f64, friction: f64) -> Contact<3> {
+    Contact {
+        shape: hooke::sim::Shape::Plane {
+            point: Vector3::new(0.0, height, 0.0),
+            normal: Vector3::y(),
+        },
+        friction,
+    }
+}
+
+fn sphere(center: Vector3<f64>, radius: f64, friction: f64) -> Contact<3> {
+    Contact {
+        shape: hooke::sim::Shape::Sphere { center, radius },
+        friction,
+    }
+}
+
+fn settings(integrator: Integrator) -> Settings {
+    Settings {
+        integrator,
+        // The energy checks below are this file's own, with their stated bound.
+        energy_limit: None,
+        ..Settings::default()
+    }
+}
+
+/// Run `frames` frames; per frame check that every free vertex is outside every obstacle (signed
+/// distance > 0: the barrier is infinite at the surface, so the solve never puts one there) and
+/// that the converged flag and the residual agree. Returns the total energies, E₀ first.
+fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
+    let mut energies = vec![sim.energy().total];
+    for frame in 1..=frames {
+        let report = sim.step().unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        let solver = report.solver.expect("an implicit solve");
+        if solver.stop == StopReason::Converged {
+            assert!(
+                solver.residual <= tolerance,
+                "frame {frame}: converged with residual {:e} m/s above {tolerance:e}",
+                solver.residual
+            );
+        }
+        assert_eq!(report.converged, Some(solver.stop.is_converged()));
+        let deepest = sim.smallest_contact_distance();
+        assert!(
+            deepest > 0.0,
+            "frame {frame}: a vertex is {deepest:e} m from an obstacle"
+        );
+        energies.push(sim.energy().total);
+    }
+    energies
+}
+
+/// E(n+1) ≤ E(n) + 1e-9 · max |E|: backward Euler without damping or friction gains no energy, so
+/// only round-off of the energy's own size may show.
+fn assert_no_energy_gain(energies: &[f64], what: &str) {
+    let scale = energies.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    for (n, pair) in energies.windows(2).enumerate() {
+        assert!(
+            pair[1] <= pair[0] + 1e-9 * scale,
+            "{what}: frame {}: energy rose from {} to {} J (scale {scale} J)",
+            n + 1,
+            pair[0],
+            pair[1]
+        );
+    }
+}
+
+#[test]
+fn a_free_fall_converges_in_one_newton_iteration_a_frame() {
+    // No spring is stretched in free fall, so x⁰ = y is the solution: the first Newton step is
+    // round-off, below the step-size criterion at once. (A gradient relative to ∇Φ(y), which is
+    // itself round-off, was the old criterion, which such a body could never meet.)
+    let (scene, state) = drop(10, 1.0, Vector3::new(0.3, 2.0, 0.0), Vec::new());
+    let mut sim = Simulation::new(scene, state, settings(Integrator::Newton)).unwrap();
+    for frame in 1..=10 {
+        let solver = sim.step().unwrap().solver.unwrap();
+        assert_eq!(solver.stop, StopReason::Converged, "frame {frame}");
+        assert!(solver.iterations <= 1, "frame {frame}: {solver:?}");
+        assert!(solver.residual <= DEFAULT_STEP_TOLERANCE, "frame {frame}");
+    }
+}
+
+#[test]
+fn newton_drops_on_the_ground_and_a_sphere_without_penetration_or_energy_gain() {
+    let cases = [
+        ("ground", vec![ground(0.0, 0.0)], 0.2, -3.0),
+        (
+            "sphere and ground",
+            vec![sphere(Vector3::zeros(), 0.2, 0.0), ground(-0.3, 0.0)],
+            0.3,
+            0.0,
+        ),
+    ];
+    for (what, contacts, height, speed) in cases {
+        let (scene, state) = drop(10, height, Vector3::new(0.0, speed, 0.0), contacts);
+        let mut sim = Simulation::new(scene, state, settings(Integrator::Newton)).unwrap();
+        let energies = run(&mut sim, 30, DEFAULT_STEP_TOLERANCE);
+        assert_no_energy_gain(&energies, what);
+    }
+}
+
+#[test]
+fn newton_cg_and_lbfgs_never_cross_an_obstacle() {
+    for integrator in [Integrator::NewtonCg, Integrator::Lbfgs] {
+        let (scene, state) = drop(
+            8,
+            0.3,
+            Vector3::new(0.0, -2.0, 0.0),
+            vec![sphere(Vector3::zeros(), 0.2, 0.0), ground(-0.3, 0.0)],
+        );
+        let mut sim = Simulation::new(scene, state, settings(integrator)).unwrap();
+        run(&mut sim, 20, DEFAULT_STEP_TOLERANCE);
+    }
+}
+
+#[test]
+fn a_cloth_at_rest_on_the_ground_stays_at_rest() {
+    // The flat cloth's equilibrium on the ground: every vertex (of equal mass) where the barrier
+    // carries its weight. Settle it with long steps (backward Euler at h = 1 s is nearly a static
+    // solve), then restart at rest with the scene's h: every speed must stay ≤ 1e-6 m/s.
+    let (scene, mut state) = drop(6, 0.0005, Vector3::zeros(), vec![ground(0.0, 0.5)]);
+    let settle = scene.clone().with_time_step(1.0).unwrap();
+    let mut sim = Simulation::new(settle, state.clone(), settings(Integrator::Newton)).unwrap();
+    for _ in 0..40 {
+        sim.step().unwrap();
+    }
+    state.positions = sim.state().positions.clone();
+    for integrator in [Integrator::Newton, Integrator::NewtonCg, Integrator::Lbfgs] {
+        let mut sim = Simulation::new(scene.clone(), state.clone(), settings(integrator)).unwrap();
+        for frame in 1..=10 {
+            let solver = sim.step().unwrap().solver.unwrap();
+            let fastest = sim
+                .state()
+                .velocities
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.norm()));
+            assert!(
+                fastest <= 1e-6,
+                "{integrator}: frame {frame}: a vertex moves at {fastest:e} m/s ({solver:?})"
+            );
+            if integrator == Integrator::Newton {
+                assert!(solver.iterations <= 1, "frame {frame}: {solver:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_vertex_that_starts_inside_an_obstacle_is_refused() {
+    let (scene, state) = drop(4, -0.01, Vector3::zeros(), vec![ground(0.0, 0.0)]);
+    let err = Simulation::new(scene, state, settings(Integrator::Newton)).unwrap_err();
+    assert!(
+        matches!(err, SimError::InvalidParameter { .. }) && err.to_string().contains("outside"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_barrier_settings_are_checked() {
+    let (scene, _) = drop(4, 0.1, Vector3::zeros(), vec![ground(0.0, 0.0)]);
+    for bad in [
+        BarrierSettings {
+            distance: Some(0.0),
+            ..BarrierSettings::default()
+        },
+        BarrierSettings {
+            stiffness: Some(f64::NAN),
+            ..BarrierSettings::default()
+        },
+        BarrierSettings {
+            friction_velocity: -1.0,
+            ..BarrierSettings::default()
+        },
+    ] {
+        assert!(scene.clone().with_barrier(bad).is_err(), "{bad:?}");
+    }
+}
+
+#[test]
+fn a_relative_gradient_criterion_is_still_available() {
+    let (scene, state) = drop(6, 0.2, Vector3::zeros(), vec![ground(0.0, 0.0)]);
+    let mut s = settings(Integrator::Newton);
+    s.newton.convergence = Convergence::RelativeGradient;
+    s.newton.tolerance = 1e-8;
+    let mut sim = Simulation::new(scene, state, s).unwrap();
+    for _ in 0..5 {
+        let solver = sim.step().unwrap().solver.unwrap();
+        if solver.stop == StopReason::Converged {
+            assert!(solver.residual <= 1e-8, "{solver:?}");
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+
+    /// Generated drops onto a tilted plane and a sphere: no vertex ever inside, no energy gained.
+    #[test]
+    fn generated_drops_never_penetrate_or_gain_energy(
+        height in 0.05f64..0.4,
+        speed in -4.0f64..0.0,
+        tilt in -0.4f64..0.4,
+        cx in -0.3f64..0.3,
+        radius in 0.05f64..0.25,
+    ) {
+        let normal = Vector3::new(tilt.sin(), tilt.cos(), 0.0);
+        let contacts = vec![
+            Contact {
+                shape: hooke::sim::Shape::Plane { point: Vector3::new(0.0, -0.6, 0.0), normal },
+                friction: 0.0,
+            },
+            sphere(Vector3::new(cx, -0.6 + 0.5 * radius, 0.0), radius, 0.0),
+        ];
+        let (scene, state) = drop(5, height, Vector3::new(0.0, speed, 0.0), contacts);
+        let mut sim = Simulation::new(scene, state, settings(Integrator::Newton)).unwrap();
+        let energies = run(&mut sim, 20, DEFAULT_STEP_TOLERANCE);
+        assert_no_energy_gain(&energies, "generated drop");
+    }
+}
