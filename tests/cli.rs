@@ -34,6 +34,13 @@ fn scenes_lists_the_canonical_scenes() {
         "cloth-320",
         "beam-4",
         "seed-2d",
+        "bunny-drop",
+        "cloth-drape-20",
+        "cloth-drape-40",
+        "cloth-drape-80",
+        "cloth-fall-20",
+        "cloth-fall-40",
+        "cloth-fall-80",
     ] {
         assert!(
             text.lines().any(|l| l.starts_with(name)),

@@ -476,3 +476,165 @@ fn parallel_and_serial_runs_are_identical() {
     let (a, b) = (run(a, 1).unwrap(), run(b, 1).unwrap());
     assert!(a.state() == b.state(), "parallel and serial states differ");
 }
+
+/// The ready-made files of cloth-drape-40 and cloth-fall-40 (which place the cloth with
+/// `mesh.transform` and, for the fall, start it with `initial.velocity`) build the built-in scenes:
+/// positions, velocities, contacts, frames and h, and then the whole setup.
+#[test]
+fn drape_and_fall_files_build_the_built_in_scenes() {
+    for name in ["cloth-drape-40", "cloth-fall-40"] {
+        let path = format!("data/scenes/{name}.toml");
+        let AnySetup::Three(file) = load_scene(Path::new(&path))
+            .unwrap_or_else(|e| panic!("{e}"))
+            .setup
+        else {
+            panic!("{path}: a 3D scene")
+        };
+        let Some(Ok(AnySetup::Three(built_in))) = scenes::builtin(name) else {
+            panic!("{name} is built in")
+        };
+        assert_eq!(file.initial.positions, built_in.initial.positions, "{path}");
+        assert_eq!(
+            file.initial.velocities, built_in.initial.velocities,
+            "{path}"
+        );
+        assert_eq!(file.scene.contacts(), built_in.scene.contacts(), "{path}");
+        assert_eq!(file.steps, built_in.steps, "{path}");
+        assert_eq!(file.scene.time_step(), built_in.scene.time_step(), "{path}");
+        assert!(file.scene.pinned().is_empty(), "{path} pins nothing");
+        assert!(file == built_in, "{path} differs from the built-in {name}");
+    }
+}
+
+/// The drape and fall scenes are as their documentation defines them.
+#[test]
+fn drape_and_fall_scenes_are_as_defined() {
+    let drape = scenes::cloth_drape(20).unwrap();
+    let mesh = drape.scene.mesh();
+    assert_eq!(mesh.vertex_count(), 400);
+    // Vertex (i, j) at x = i/(N−1), z = j/(N−1), lifted to y = 0.3.
+    assert_eq!(mesh.positions()[19], Vector3::new(0.0, 0.3, 1.0));
+    assert_eq!(mesh.positions()[20], Vector3::new(1.0 / 19.0, 0.3, 0.0));
+    assert!((mesh.total_mass() - 1.0).abs() < 1e-12);
+    assert!(mesh.springs().iter().all(|s| s.stiffness == 1e3));
+    assert!(drape.scene.pinned().is_empty());
+    assert!(drape
+        .initial
+        .velocities
+        .iter()
+        .all(|v| *v == Vector3::zeros()));
+    assert_eq!(
+        drape.scene.contacts(),
+        &[
+            Contact {
+                shape: Shape::Sphere {
+                    center: Vector3::new(0.5, 0.0, 0.5),
+                    radius: 0.25
+                },
+                friction: 0.1
+            },
+            Contact {
+                shape: Shape::Plane {
+                    point: Vector3::new(0.0, -0.3, 0.0),
+                    normal: Vector3::y()
+                },
+                friction: 0.1
+            },
+        ]
+    );
+    assert_eq!(
+        drape.scene.forces().gravity(),
+        Some(Vector3::new(0.0, -9.81, 0.0))
+    );
+    assert_eq!((drape.steps, drape.scene.time_step()), (60, 1.0 / 30.0));
+    assert_eq!(drape.settings.integrator, Integrator::Newton);
+
+    let fall = scenes::cloth_fall(20).unwrap();
+    assert!(fall.scene.mesh().positions().iter().all(|p| p.y == 0.5));
+    assert!(fall.scene.pinned().is_empty());
+    assert!(fall
+        .initial
+        .velocities
+        .iter()
+        .all(|v| *v == Vector3::new(0.0, -5.0, 0.0)));
+    assert_eq!(
+        fall.scene.contacts(),
+        &[Contact {
+            shape: Shape::Plane {
+                point: Vector3::zeros(),
+                normal: Vector3::y()
+            },
+            friction: 0.3
+        }]
+    );
+    assert_eq!((fall.steps, fall.scene.time_step()), (30, 1.0 / 30.0));
+    assert_eq!(fall.settings.integrator, Integrator::Newton);
+
+    // By name, any N ≥ 2 like cloth-N.
+    for (name, vertices) in [("cloth-drape-3", 9), ("cloth-fall-5", 25)] {
+        let Some(Ok(AnySetup::Three(s))) = scenes::builtin(name) else {
+            panic!("{name}")
+        };
+        assert_eq!(
+            (s.name.as_str(), s.scene.mesh().vertex_count()),
+            (name, vertices)
+        );
+    }
+    assert!(matches!(scenes::builtin("cloth-drape-1"), Some(Err(_))));
+    assert!(scenes::builtin("cloth-drape-x").is_none());
+    let listed: Vec<String> = scenes::builtin_scenes()
+        .into_iter()
+        .map(|(n, _)| n)
+        .collect();
+    for n in [20, 40, 80] {
+        for kind in ["drape", "fall"] {
+            let name = format!("cloth-{kind}-{n}");
+            assert!(listed.contains(&name), "{name} is listed");
+            assert!(scenes::builtin(&name).is_some(), "{name} builds by name");
+        }
+    }
+}
+
+/// A file mesh is placed by `mesh.transform` before springs, masses and pins are made: the
+/// 30×30 cloth file scaled by 2 about the origin and lifted by 1 m keeps its spring count, has
+/// springs twice as long, and its pin region is found where the transform put it.
+#[test]
+fn a_file_mesh_is_placed_by_its_transform() {
+    let meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/meshes");
+    let text = |transform: &str, region: &str| {
+        format!(
+            "[mesh]\nfile = \"{}/cloth_30x30.obj\"\nstiffness = 500.0\nmass = {{ total = 0.5 }}\n\
+             {transform}\n[pins]\nregion = {region}\n[integrator]\nmethod = \"newton\"\n\
+             time_step = 0.01\n[run]\nsteps = 1\n",
+            meshes.display()
+        )
+    };
+    let load = |text: String| match parse_scene(&text, Path::new("placed.toml")) {
+        Ok(file) => match file.setup {
+            AnySetup::Three(s) => Ok(s),
+            AnySetup::Two(_) => panic!("a 3D scene"),
+        },
+        Err(e) => Err(e.to_string()),
+    };
+    let edge = "{ min = [-0.01, -1.0, -0.51], max = [0.01, 1.0, 0.51] }";
+    let plain = load(text("", edge)).unwrap();
+    let placed = load(text(
+        "transform = { scale = 2.0, translate = [0.0, 1.0, 0.0] }",
+        "{ min = [-0.01, 0.0, -1.01], max = [0.01, 2.0, 1.01] }",
+    ))
+    .unwrap();
+    let (a, b) = (plain.scene.mesh(), placed.scene.mesh());
+    assert_eq!(a.springs().len(), b.springs().len());
+    for (s, t) in a.springs().iter().zip(b.springs()) {
+        assert!((2.0 * s.rest_length - t.rest_length).abs() < 1e-12);
+    }
+    for (p, q) in a.positions().iter().zip(b.positions()) {
+        assert!((2.0 * p + Vector3::new(0.0, 1.0, 0.0) - q).norm() < 1e-12);
+    }
+    assert_eq!(plain.scene.pinned(), placed.scene.pinned());
+    // The old region no longer holds anything once the mesh is lifted.
+    let err = load(text("transform = { translate = [0.0, 5.0, 0.0] }", edge)).unwrap_err();
+    assert!(err.contains("pins.region"), "{err}");
+    let err = load(text("transform = { scale = 0.0 }", edge)).unwrap_err();
+    assert!(err.contains("mesh.transform.scale"), "{err}");
+}

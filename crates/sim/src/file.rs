@@ -17,6 +17,11 @@
 //! # rest_lengths = [0.1]                   # m, one per spring (stiffness applies to every spring)
 //! # particle_mass = 1.0                    # kg, every particle
 //! # fill = { spacing = 0.01 }              (closed surface files: fill with tetrahedra, lattice spacing m)
+//! # transform = { scale = 2.0, rotate = { axis = [0.0, 1.0, 0.0], degrees = 90.0 }, translate = [0.0, 0.3, 0.0] }
+//! #                        # scale (> 0, about the origin), then rotate (degrees, right-handed
+//! #                        # about the axis through the origin), then translate (m); every part
+//! #                        # optional. 2D meshes: rotate = { degrees = .. } only, counter-clockwise
+//! #                        # about the origin; translate = [x, y]
 //!
 //! [pins]
 //! vertices = [0, 39]       # and/or region = { min = [..], max = [..] }
@@ -42,6 +47,9 @@
 //! # normal = [0.0, 1.0, 0.0]
 //! # friction = 0.0
 //!
+//! # [initial]              # the state at time 0; default: at rest
+//! # velocity = [0.0, -5.0, 0.0]   # m/s, every vertex but the pinned ones
+//!
 //! [integrator]
 //! method = "symplectic-euler"  # or "explicit-euler", "linearized", "newton", "pd"
 //! time_step = 0.03333333333333333   # s, one frame
@@ -62,6 +70,19 @@
 //! # format = "obj"         # or "vtk"
 //! ```
 //!
+//! Generators pin nothing: a scene file's pins are those of `[pins]` (`vertices = []` pins none).
+//!
+//! `mesh.transform` places the mesh before anything else reads it: a file's vertices are moved
+//! before a closed surface is filled with tetrahedra and before springs and masses are made from
+//! them (so masses from a density follow the scaled size); a generator's mesh is moved after it is
+//! generated, its rest lengths scaled with it (it stays at rest) and its masses unchanged. `[pins]`
+//! regions, `[[pins.path]]` regions and the initial state all see the placed positions. A zero or
+//! non-finite axis, a scale ≤ 0, non-finite numbers, or an axis on a 2D mesh are errors naming
+//! the key.
+//!
+//! `initial.velocity` is given to every vertex; vertices pinned in place keep zero velocity, and
+//! vertices pinned on a path start with it too (from the first step on, theirs is the path's).
+//!
 //! Unknown keys are errors. Every error names the file and the key (and, for syntax and type
 //! errors, the line and column).
 
@@ -69,7 +90,7 @@ use std::path::{Path, PathBuf};
 
 use hooke_mesh::io::{read_mesh, Mesh};
 use hooke_mesh::{generators, Bending, MassModel, SpringMesh};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
 use crate::contact::{Contact, Shape};
@@ -150,6 +171,7 @@ struct Document {
     damping: Damping0,
     #[serde(default)]
     contact: Vec<ContactSection>,
+    initial: Option<InitialSection>,
     integrator: IntegratorSection,
     run: RunSection,
     #[serde(default)]
@@ -177,6 +199,31 @@ struct MeshSection {
     rest_lengths: Option<Vec<f64>>,
     particle_mass: Option<f64>,
     fill: Option<FillSection>,
+    transform: Option<TransformSection>,
+}
+
+/// `transform = { scale = s, rotate = { axis = [..], degrees = θ }, translate = [..] }`: scale
+/// about the origin, then rotate about the origin, then translate; every part optional.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransformSection {
+    scale: Option<f64>,
+    rotate: Option<RotateSection>,
+    translate: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RotateSection {
+    axis: Option<Vec<f64>>,
+    degrees: f64,
+}
+
+/// `[initial]`: the state at time 0 beyond the mesh's positions.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InitialSection {
+    velocity: Option<Vec<f64>>,
 }
 
 /// `fill = { spacing = h }`: fill a closed surface file with tetrahedra (isosurface stuffing).
@@ -373,6 +420,22 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<SceneFile, SceneFileError>
     })
 }
 
+/// A checked `mesh.transform`: x ↦ R (s x) + t.
+struct Placement<const D: usize> {
+    /// s, > 0.
+    scale: f64,
+    /// R, a rotation about the origin.
+    rotation: SMatrix<f64, D, D>,
+    /// t, m.
+    translation: SVector<f64, D>,
+}
+
+impl<const D: usize> Placement<D> {
+    fn apply(&self, p: &SVector<f64, D>) -> SVector<f64, D> {
+        self.rotation * (p * self.scale) + self.translation
+    }
+}
+
 enum AnyMesh {
     Two(SpringMesh<2>),
     Three(SpringMesh<3>),
@@ -437,7 +500,7 @@ impl Context<'_> {
                         "`positions`, `springs`, `rest_lengths` and `particle_mass` apply to generator \"particles\"",
                     ));
                 }
-                match generator.as_str() {
+                let mesh = match generator.as_str() {
                     "particles" => self.particles(m),
                     "cloth" => {
                         let n = m.n.ok_or_else(|| self.invalid("mesh.n", "missing: cloth needs n (vertices per side)"))?;
@@ -477,6 +540,10 @@ impl Context<'_> {
                         "mesh.generator",
                         format!("unknown generator {other:?}; expected \"cloth\", \"beam\", \"seed-2d\" or \"particles\""),
                     )),
+                }?;
+                match mesh {
+                    AnyMesh::Two(mesh) => self.place_generated(mesh, m).map(AnyMesh::Two),
+                    AnyMesh::Three(mesh) => self.place_generated(mesh, m).map(AnyMesh::Three),
                 }
             }
             (None, Some(file)) => {
@@ -508,6 +575,29 @@ impl Context<'_> {
                     }
                 };
                 let loaded = read_mesh(&file).map_err(|e| mesh_err("mesh.file", e))?;
+                // The transform moves the file's vertices before anything is built from them: the
+                // lattice of `fill`, the springs' rest lengths and the masses follow the placed mesh.
+                let loaded = match self.placement::<3>(m.transform.as_ref())? {
+                    None => loaded,
+                    Some(placement) => {
+                        let place = |points: &[SVector<f64, 3>]| -> Vec<SVector<f64, 3>> {
+                            points.iter().map(|p| placement.apply(p)).collect()
+                        };
+                        match loaded {
+                            Mesh::Surface(tri) => hooke_mesh::TriMesh::new(
+                                place(tri.positions()),
+                                tri.triangles().to_vec(),
+                            )
+                            .map(Mesh::Surface),
+                            Mesh::Volume(tet) => hooke_mesh::TetMesh::new(
+                                place(tet.positions()),
+                                tet.tetrahedra().to_vec(),
+                            )
+                            .map(Mesh::Volume),
+                        }
+                        .map_err(|e| mesh_err("mesh.transform", e))?
+                    }
+                };
                 match loaded {
                     Mesh::Surface(tri) if m.fill.is_some() => {
                         if bending != Bending::None {
@@ -538,6 +628,127 @@ impl Context<'_> {
                 .map_err(|e| mesh_err("mesh", e))
             }
         }
+    }
+
+    /// `mesh.transform`, checked, for a `D`-dimensional mesh; `None` when absent.
+    fn placement<const D: usize>(
+        &self,
+        transform: Option<&TransformSection>,
+    ) -> Result<Option<Placement<D>>, SceneFileError> {
+        let Some(t) = transform else {
+            return Ok(None);
+        };
+        let scale = match t.scale {
+            None => 1.0,
+            Some(s) if s.is_finite() && s > 0.0 => s,
+            Some(s) => {
+                return Err(self.invalid(
+                    "mesh.transform.scale",
+                    format!("{s}: must be a finite number > 0"),
+                ))
+            }
+        };
+        let rotation =
+            match &t.rotate {
+                None => SMatrix::<f64, D, D>::identity(),
+                Some(r) => {
+                    if !r.degrees.is_finite() {
+                        return Err(self.invalid(
+                            "mesh.transform.rotate.degrees",
+                            format!("{}: must be finite", r.degrees),
+                        ));
+                    }
+                    let (sin, cos) = r.degrees.to_radians().sin_cos();
+                    match (D, &r.axis) {
+                        (2, None) => SMatrix::from_fn(|i, j| match (i, j) {
+                            (0, 0) | (1, 1) => cos,
+                            (0, 1) => -sin,
+                            _ => sin,
+                        }),
+                        (2, Some(_)) => return Err(self.invalid(
+                            "mesh.transform.rotate.axis",
+                            "a 2D mesh turns in its plane about the origin: give `degrees` only",
+                        )),
+                        (_, None) => {
+                            return Err(self.invalid(
+                                "mesh.transform.rotate.axis",
+                                "missing: the axis [x, y, z] to turn about (right-handed)",
+                            ))
+                        }
+                        (_, Some(axis)) => {
+                            let key = "mesh.transform.rotate.axis";
+                            let k = self.vector::<D>(key, axis)?;
+                            let length = k.norm();
+                            if !length.is_finite() || length == 0.0 {
+                                return Err(self.invalid(
+                                    key,
+                                    format!("{:?}: must be finite and non-zero", k.as_slice()),
+                                ));
+                            }
+                            let k = k / length;
+                            // Rodrigues: R = cos θ I + sin θ [k]× + (1 − cos θ) k kᵀ.
+                            SMatrix::from_fn(|i, j| {
+                                let identity = if i == j { 1.0 } else { 0.0 };
+                                let cross = match (i, j) {
+                                    (0, 1) => -k[2],
+                                    (0, 2) => k[1],
+                                    (1, 0) => k[2],
+                                    (1, 2) => -k[0],
+                                    (2, 0) => -k[1],
+                                    (2, 1) => k[0],
+                                    _ => 0.0,
+                                };
+                                cos * identity + sin * cross + (1.0 - cos) * k[i] * k[j]
+                            })
+                        }
+                    }
+                }
+            };
+        let translation = match &t.translate {
+            None => SVector::zeros(),
+            Some(values) => {
+                let key = "mesh.transform.translate";
+                let v = self.vector::<D>(key, values)?;
+                if !v.iter().all(|c| c.is_finite()) {
+                    return Err(self.invalid(key, format!("{values:?}: must be finite")));
+                }
+                v
+            }
+        };
+        Ok(Some(Placement {
+            scale,
+            rotation,
+            translation,
+        }))
+    }
+
+    /// A generator's mesh moved by `mesh.transform` (if any): positions placed, rest lengths
+    /// scaled with them (the mesh stays at rest), masses and elements unchanged.
+    fn place_generated<const D: usize>(
+        &self,
+        mesh: SpringMesh<D>,
+        m: &MeshSection,
+    ) -> Result<SpringMesh<D>, SceneFileError> {
+        let Some(placement) = self.placement::<D>(m.transform.as_ref())? else {
+            return Ok(mesh);
+        };
+        let positions = mesh
+            .positions()
+            .iter()
+            .map(|p| placement.apply(p))
+            .collect();
+        let springs = mesh
+            .springs()
+            .iter()
+            .map(|s| hooke_mesh::Spring {
+                rest_length: s.rest_length * placement.scale,
+                ..*s
+            })
+            .collect();
+        SpringMesh::new(positions, mesh.masses().to_vec(), springs)
+            .and_then(|placed| placed.with_triangles(mesh.triangles().to_vec()))
+            .and_then(|placed| placed.with_tetrahedra(mesh.tetrahedra().to_vec()))
+            .map_err(|e| self.invalid("mesh.transform", e))
     }
 
     /// The "particles" generator: the graph as listed (2D or 3D, by the positions' length).
@@ -850,9 +1061,33 @@ impl Context<'_> {
                 .apply_options(&options)
                 .map_err(|e| self.invalid(key, e))?;
         }
+        let mut initial = scene.initial_state();
+        if let Some(velocity) = doc.initial.as_ref().and_then(|i| i.velocity.as_ref()) {
+            let key = "initial.velocity";
+            let v = self.vector::<D>(key, velocity)?;
+            if !v.iter().all(|c| c.is_finite()) {
+                return Err(self.invalid(key, format!("{velocity:?}: must be finite")));
+            }
+            // Pinned vertices stay at rest; those on a path start with the velocity too (after
+            // the first step, theirs is the path's).
+            let mut moves = scene.is_pinned().iter().map(|&p| !p).collect::<Vec<_>>();
+            for group in scene.pin_paths() {
+                for &vertex in &group.vertices {
+                    moves[vertex as usize] = true;
+                }
+            }
+            for (velocity, _) in initial
+                .velocities
+                .iter_mut()
+                .zip(&moves)
+                .filter(|(_, &m)| m)
+            {
+                *velocity = v;
+            }
+        }
         Ok(Setup {
             name,
-            initial: scene.initial_state(),
+            initial,
             scene,
             steps: doc.run.steps,
             settings,
@@ -1170,6 +1405,219 @@ tolerance = 1e-9
                 .unwrap_err()
                 .to_string();
             assert!(err.contains(expected), "{path}: {err}");
+        }
+    }
+
+    const NEWTON: &str = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";
+
+    /// A one-spring graph whose first particle is at `point`, placed by `transform`.
+    fn placed(point: [f64; 3], transform: &str) -> Result<Setup<3>, SceneFileError> {
+        let text = format!(
+            "[mesh]\ngenerator = \"particles\"\npositions = [[{}, {}, {}], [0.0, 0.0, 0.0]]\n\
+             springs = [[0, 1]]\nrest_lengths = [0.5]\nparticle_mass = 1.0\nstiffness = 10.0\n\
+             transform = {transform}\n{NEWTON}[run]\nsteps = 1\n",
+            point[0], point[1], point[2]
+        );
+        match parse_scene(&text, Path::new("t.toml"))?.setup {
+            AnySetup::Three(s) => Ok(s),
+            AnySetup::Two(_) => unreachable!(),
+        }
+    }
+
+    /// Scale about the origin, then rotate about the origin, then translate: (1, 0, 0) scaled by 2
+    /// is (2, 0, 0), turned 90° about +y is (0, 0, −2), moved by (1, 2, 3) is (1, 2, 1). Any other
+    /// order gives another point. Rest lengths scale with the mesh; masses do not change.
+    #[test]
+    fn the_transform_scales_then_rotates_then_translates() {
+        let setup = placed(
+            [1.0, 0.0, 0.0],
+            "{ scale = 2.0, rotate = { axis = [0.0, 3.0, 0.0], degrees = 90.0 }, translate = [1.0, 2.0, 3.0] }",
+        )
+        .unwrap();
+        let mesh = setup.scene.mesh();
+        let expected = [
+            SVector::<f64, 3>::new(1.0, 2.0, 1.0),
+            SVector::<f64, 3>::new(1.0, 2.0, 3.0),
+        ];
+        for (p, e) in mesh.positions().iter().zip(&expected) {
+            assert!((p - e).norm() < 1e-12, "{p:?} != {e:?}");
+        }
+        assert_eq!(mesh.springs()[0].rest_length, 1.0);
+        assert_eq!(mesh.masses(), &[1.0, 1.0]);
+        assert_eq!(setup.initial.positions, mesh.positions());
+        // Every part is optional.
+        let moved = placed([1.0, 0.0, 0.0], "{ translate = [0.0, 0.5, 0.0] }").unwrap();
+        assert_eq!(
+            moved.scene.mesh().positions()[0],
+            SVector::<f64, 3>::new(1.0, 0.5, 0.0)
+        );
+        assert_eq!(moved.scene.mesh().springs()[0].rest_length, 0.5);
+        let turned = placed(
+            [1.0, 0.0, 0.0],
+            "{ rotate = { axis = [0.0, 0.0, 1.0], degrees = 90.0 } }",
+        )
+        .unwrap();
+        assert!(
+            (turned.scene.mesh().positions()[0] - SVector::<f64, 3>::new(0.0, 1.0, 0.0)).norm()
+                < 1e-12
+        );
+        assert!(placed([1.0, 0.0, 0.0], "{}").is_ok());
+    }
+
+    #[test]
+    fn bad_transforms_name_the_key() {
+        for (transform, key) in [
+            ("{ scale = 0.0 }", "mesh.transform.scale"),
+            ("{ scale = -1.0 }", "mesh.transform.scale"),
+            ("{ scale = nan }", "mesh.transform.scale"),
+            ("{ scale = inf }", "mesh.transform.scale"),
+            (
+                "{ rotate = { axis = [0.0, 0.0, 0.0], degrees = 10.0 } }",
+                "mesh.transform.rotate.axis",
+            ),
+            (
+                "{ rotate = { axis = [0.0, nan, 1.0], degrees = 10.0 } }",
+                "mesh.transform.rotate.axis",
+            ),
+            (
+                "{ rotate = { axis = [0.0, 1.0], degrees = 10.0 } }",
+                "mesh.transform.rotate.axis",
+            ),
+            (
+                "{ rotate = { degrees = 10.0 } }",
+                "mesh.transform.rotate.axis",
+            ),
+            (
+                "{ rotate = { axis = [0.0, 1.0, 0.0], degrees = inf } }",
+                "mesh.transform.rotate.degrees",
+            ),
+            ("{ translate = [0.0, 1.0] }", "mesh.transform.translate"),
+            (
+                "{ translate = [0.0, nan, 1.0] }",
+                "mesh.transform.translate",
+            ),
+            ("{ shear = 1.0 }", "shear"),
+        ] {
+            let err = placed([1.0, 0.0, 0.0], transform).unwrap_err().to_string();
+            assert!(
+                err.contains("t.toml") && err.contains(key),
+                "{transform}: {err}"
+            );
+        }
+    }
+
+    /// In 2D, rotate takes degrees only (counter-clockwise about the origin) and refuses an axis.
+    #[test]
+    fn a_2d_transform_turns_in_the_plane() {
+        let text = |transform: &str| {
+            format!(
+                "[mesh]\ngenerator = \"particles\"\npositions = [[1.0, 0.0], [0.0, 0.0]]\n\
+                 springs = [[0, 1]]\nrest_lengths = [1.0]\nparticle_mass = 1.0\nstiffness = 10.0\n\
+                 transform = {transform}\n{NEWTON}[run]\nsteps = 1\n"
+            )
+        };
+        let parsed = parse_scene(
+            &text("{ scale = 2.0, rotate = { degrees = 90.0 }, translate = [0.5, 0.0] }"),
+            Path::new("t.toml"),
+        )
+        .unwrap();
+        let AnySetup::Two(setup) = parsed.setup else {
+            panic!("a 2D graph gives a 2D scene")
+        };
+        let p = setup.scene.mesh().positions()[0];
+        assert!(
+            (p - SVector::<f64, 2>::new(0.5, 2.0)).norm() < 1e-12,
+            "{p:?}"
+        );
+        let err = parse_scene(
+            &text("{ rotate = { axis = [0.0, 0.0, 1.0], degrees = 90.0 } }"),
+            Path::new("t.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("mesh.transform.rotate.axis"), "{err}");
+    }
+
+    /// `[pins]` regions are matched against the placed mesh: the cloth's edge x = 0, moved up by
+    /// 1 m, is found at y = 1 and not at y = 0.
+    #[test]
+    fn pin_regions_are_matched_after_the_transform() {
+        let cloth = |transform: &str, region: &str| {
+            let text = format!(
+                "[mesh]\ngenerator = \"cloth\"\nn = 4\nstiffness = 100.0\ntransform = {transform}\n\
+                 [pins]\nregion = {region}\n{NEWTON}[run]\nsteps = 1\n"
+            );
+            parse_scene(&text, Path::new("t.toml")).map(|f| match f.setup {
+                AnySetup::Three(s) => s,
+                AnySetup::Two(_) => unreachable!(),
+            })
+        };
+        let lifted = "{ translate = [0.0, 1.0, 0.0] }";
+        let setup = cloth(lifted, "{ min = [-0.1, 0.9, -0.1], max = [0.1, 1.1, 1.1] }").unwrap();
+        assert_eq!(setup.scene.pinned(), &[0, 1, 2, 3]);
+        let err = cloth(
+            lifted,
+            "{ min = [-0.1, -0.1, -0.1], max = [0.1, 0.1, 1.1] }",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("pins.region"), "{err}");
+        // Turned 90° about z, vertex (i, j) at (i/3, 0, j/3) goes to (0, i/3, j/3): only (3, 0),
+        // vertex 12, is near (0, 1, 0).
+        let turned = cloth(
+            "{ rotate = { axis = [0.0, 0.0, 1.0], degrees = 90.0 } }",
+            "{ min = [-0.1, 0.9, -0.1], max = [0.1, 1.1, 0.1] }",
+        )
+        .unwrap();
+        assert_eq!(turned.scene.pinned(), &[12]);
+    }
+
+    /// Generators pin nothing; `[pins] vertices = []` is valid and pins nothing either.
+    #[test]
+    fn generators_pin_nothing() {
+        for pins in ["", "[pins]\nvertices = []\n"] {
+            let text = format!(
+                "[mesh]\ngenerator = \"cloth\"\nn = 4\nstiffness = 100.0\n{pins}{NEWTON}[run]\nsteps = 1\n"
+            );
+            let AnySetup::Three(setup) = parse_scene(&text, Path::new("t.toml")).unwrap().setup
+            else {
+                unreachable!()
+            };
+            assert!(setup.scene.pinned().is_empty(), "{pins:?}");
+        }
+    }
+
+    /// `initial.velocity` is given to every free vertex and to vertices on a pin path; vertices
+    /// pinned in place start at rest.
+    #[test]
+    fn the_initial_velocity_moves_the_free_vertices() {
+        let setup = parse(&format!(
+            "{NEWTON}[initial]\nvelocity = [0.0, -5.0, 0.0]\n\
+             [[pins.path]]\nvertices = [15]\nvelocity = [1.0, 0.0, 0.0]\n"
+        ))
+        .unwrap();
+        let down = SVector::<f64, 3>::new(0.0, -5.0, 0.0);
+        for (v, velocity) in setup.initial.velocities.iter().enumerate() {
+            let expected = if v == 0 || v == 3 {
+                SVector::zeros()
+            } else {
+                down
+            };
+            assert_eq!(*velocity, expected, "vertex {v}");
+        }
+        assert_eq!(
+            parse(NEWTON).unwrap().initial,
+            parse(NEWTON).unwrap().scene.initial_state()
+        );
+        for (initial, expected) in [
+            ("velocity = [0.0, -5.0]", "initial.velocity"),
+            ("velocity = [0.0, nan, 0.0]", "initial.velocity"),
+            ("speed = 1.0", "speed"),
+        ] {
+            let err = parse(&format!("{NEWTON}[initial]\n{initial}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(expected), "{initial}: {err}");
         }
     }
 }

@@ -80,6 +80,16 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
             format!("{n}×{n} cloth, k = 1e5 N/m"),
         ));
     }
+    for n in [20, 40, 80] {
+        list.push((
+            format!("cloth-drape-{n}"),
+            format!("{n}×{n} cloth, k = 1e3 N/m, no pins, released at y = 0.3 m over a sphere (centre (0.5, 0, 0.5), radius 0.25 m) and the ground y = −0.3, friction 0.1, 60 frames of 1/30 s"),
+        ));
+        list.push((
+            format!("cloth-fall-{n}"),
+            format!("{n}×{n} cloth, k = 1e3 N/m, no pins, thrown down at 5 m/s from y = 0.5 m onto the ground y = 0, friction 0.3, 30 frames of 1/30 s"),
+        ));
+    }
     for r in [2, 4, 8, 16] {
         list.push((
             format!("beam-{r}"),
@@ -88,7 +98,7 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
     }
     list.push((
         "bunny-drop".into(),
-        "Stanford bunny (diagonal 0.3 m) filled with tetrahedra, k = 1e4 N/m, 1000 kg/m³, dropped from 0.2 m onto y = 0, 60 frames of 1/60 s".into(),
+        "Stanford bunny (diagonal 0.3 m) filled with tetrahedra, k = 1e4 N/m, 1000 kg/m³, dropped from 0.2 m onto the ground y = 0 (frictionless), 60 frames of 1/60 s".into(),
     ));
     list.push((
         "torus-hang".into(),
@@ -101,14 +111,23 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
     list
 }
 
-/// Build a built-in scene by name: `cloth-N`, `cloth-N-stiff` (any N ≥ 2), `beam-R` (any R ≥ 1) or
-/// `seed-2d`. Returns `None` for an unknown name.
+/// Build a built-in scene by name: `cloth-N`, `cloth-N-stiff`, `cloth-drape-N`, `cloth-fall-N` (any
+/// N ≥ 2), `beam-R` (any R ≥ 1), `bunny-drop`, `torus-hang` or `seed-2d`. Returns `None` for an
+/// unknown name.
 ///
 /// # Errors
 /// A [`SimError`] if the parameters are out of range (e.g. `cloth-1`).
 pub fn builtin(name: &str) -> Option<Result<AnySetup, SimError>> {
     if name == "seed-2d" {
         return Some(seed_2d().map(AnySetup::Two));
+    }
+    if let Some(size) = name.strip_prefix("cloth-drape-") {
+        let n: usize = size.parse().ok()?;
+        return Some(cloth_drape(n).map(AnySetup::Three));
+    }
+    if let Some(size) = name.strip_prefix("cloth-fall-") {
+        let n: usize = size.parse().ok()?;
+        return Some(cloth_fall(n).map(AnySetup::Three));
     }
     if let Some(rest) = name.strip_prefix("cloth-") {
         let (size, stiff) = match rest.strip_suffix("-stiff") {
@@ -164,6 +183,94 @@ pub fn cloth(n: usize, stiff: bool) -> Result<Setup<3>, SimError> {
         ..Settings::default()
     };
     Ok(Setup::new(name, scene, 30, settings))
+}
+
+/// Height (m) cloth-drape-N's cloth is released at.
+pub const DRAPE_HEIGHT: f64 = 0.3;
+/// Centre (m) of cloth-drape-N's sphere: under the middle of the cloth.
+pub const DRAPE_SPHERE_CENTER: [f64; 3] = [0.5, 0.0, 0.5];
+/// Radius (m) of cloth-drape-N's sphere.
+pub const DRAPE_SPHERE_RADIUS: f64 = 0.25;
+/// Height (m) of cloth-drape-N's ground plane.
+pub const DRAPE_GROUND: f64 = -0.3;
+/// Friction coefficient of cloth-drape-N's sphere and ground.
+pub const DRAPE_FRICTION: f64 = 0.1;
+/// Height (m) cloth-fall-N's cloth starts at; its ground is y = 0.
+pub const FALL_HEIGHT: f64 = 0.5;
+/// Downward speed (m/s) every vertex of cloth-fall-N starts with.
+pub const FALL_SPEED: f64 = 5.0;
+/// Friction coefficient of cloth-fall-N's ground.
+pub const FALL_FRICTION: f64 = 0.3;
+
+/// cloth-N's mesh (k = 1e3 N/m, 1 kg) moved up to height `y` (m); rest lengths unchanged.
+fn lifted_cloth(n: usize, y: f64) -> Result<hooke_mesh::SpringMesh3, SimError> {
+    let mesh = generators::cloth(n, CLOTH_SOFT_STIFFNESS)?;
+    let up = Vector3::new(0.0, y, 0.0);
+    let positions = mesh.positions().iter().map(|p| p + up).collect();
+    Ok(
+        hooke_mesh::SpringMesh::new(positions, mesh.masses().to_vec(), mesh.springs().to_vec())?
+            .with_triangles(mesh.triangles().to_vec())?,
+    )
+}
+
+/// A ground plane y = `height` (m), normal +y, with friction `friction`.
+fn ground(height: f64, friction: f64) -> Contact<3> {
+    Contact {
+        shape: Shape::Plane {
+            point: Vector3::new(0.0, height, 0.0),
+            normal: Vector3::y(),
+        },
+        friction,
+    }
+}
+
+/// cloth-drape-N: cloth-N's cloth (N×N vertices on the unit square, k = 1e3 N/m, 1 kg) with no
+/// pins, released from rest at y = [`DRAPE_HEIGHT`] over a sphere of centre
+/// [`DRAPE_SPHERE_CENTER`] and radius [`DRAPE_SPHERE_RADIUS`] and a ground plane y =
+/// [`DRAPE_GROUND`], both with friction [`DRAPE_FRICTION`]; gravity; 60 frames of h = 1/30 s by
+/// backward Euler (Newton). The cloth falls onto the sphere and its sides fold down over it.
+///
+/// # Errors
+/// [`SimError::Mesh`] if `n < 2`.
+pub fn cloth_drape(n: usize) -> Result<Setup<3>, SimError> {
+    let scene = Scene::new(lifted_cloth(n, DRAPE_HEIGHT)?, FRAME_TIME_STEP)?
+        .with_forces(vec![gravity_3d()])?
+        .with_contacts(vec![
+            Contact {
+                shape: Shape::Sphere {
+                    center: Vector3::from(DRAPE_SPHERE_CENTER),
+                    radius: DRAPE_SPHERE_RADIUS,
+                },
+                friction: DRAPE_FRICTION,
+            },
+            ground(DRAPE_GROUND, DRAPE_FRICTION),
+        ])?;
+    let settings = Settings {
+        integrator: Integrator::Newton,
+        ..Settings::default()
+    };
+    Ok(Setup::new(format!("cloth-drape-{n}"), scene, 60, settings))
+}
+
+/// cloth-fall-N: cloth-N's cloth with no pins at y = [`FALL_HEIGHT`], every vertex moving down at
+/// [`FALL_SPEED`], onto the ground plane y = 0 with friction [`FALL_FRICTION`]; gravity; 30 frames
+/// of h = 1/30 s by backward Euler (Newton). The cloth hits the ground flat after about 0.09 s.
+///
+/// # Errors
+/// [`SimError::Mesh`] if `n < 2`.
+pub fn cloth_fall(n: usize) -> Result<Setup<3>, SimError> {
+    let scene = Scene::new(lifted_cloth(n, FALL_HEIGHT)?, FRAME_TIME_STEP)?
+        .with_forces(vec![gravity_3d()])?
+        .with_contacts(vec![ground(0.0, FALL_FRICTION)])?;
+    let settings = Settings {
+        integrator: Integrator::Newton,
+        ..Settings::default()
+    };
+    let mut setup = Setup::new(format!("cloth-fall-{n}"), scene, 30, settings);
+    for v in &mut setup.initial.velocities {
+        *v = Vector3::new(0.0, -FALL_SPEED, 0.0);
+    }
+    Ok(setup)
 }
 
 /// beam-R (SCENES.md): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
@@ -275,7 +382,7 @@ fn solid_from_surface(
 
 /// bunny-drop (SCENES.md "Solids from surfaces"): `data/meshes/bunny.obj` (z up in the file, turned
 /// y up) scaled to a diagonal of 0.3 m, filled at a spacing of 0.01 m, k = 1e4 N/m, 1000 kg/m³
-/// lumped, its lowest point 0.2 m above the ground plane y = 0; gravity; 60 frames of 1/60 s, by
+/// lumped, its lowest point 0.2 m above the frictionless ground plane y = 0; gravity; 60 frames of 1/60 s, by
 /// backward Euler (Newton), the contact projected after each step.
 ///
 /// # Errors

@@ -7,7 +7,7 @@ use crate::bench::{
     format_hard_cases, format_sweep_table, format_table, hard_cases, load_setup, plot_pareto,
     plot_sweep, run_spec, sweep, write_csv, write_frames, write_json, BenchError, BenchProblem,
     ErrorMeter, HardCaseOptions, PrepareOptions, Record, SolverSpec, StartState, SweepOptions,
-    TimingOptions, HARD_CASES, HARD_INTEGRATORS,
+    TimingOptions, HARD_CASES, HARD_INTEGRATORS, HARD_SCENES,
 };
 use crate::bench::{format_time_error, read_csv, time_error, TimeErrorOptions};
 
@@ -57,7 +57,8 @@ pub struct BenchArgs {
     /// instead of the first step from rest.
     #[arg(long, requires = "sweep")]
     pub from_state: bool,
-    /// Run every integrator on every hard case of SCENES.md and print a matrix.
+    /// Run every integrator on every hard case (the cloth cases, then the implicit integrators on
+    /// bunny-drop, cloth-drape-40 and cloth-fall-40) and print a matrix and one line per run.
     #[arg(long)]
     pub hard_cases: bool,
     /// Run every integrator on the scene for 1 s at its step h and report the position error at
@@ -68,9 +69,17 @@ pub struct BenchArgs {
     /// With --time-error: the simulated time (s).
     #[arg(long, default_value_t = 1.0, requires = "time_error")]
     pub duration: f64,
-    /// With --hard-cases: frames per run.
+    /// With --hard-cases: frames per run of the cloth cases.
     #[arg(long, default_value_t = 30, requires = "hard_cases")]
     pub hard_frames: usize,
+    /// With --hard-cases: frames per run of the scene cases (bunny-drop, cloth-drape-40,
+    /// cloth-fall-40); default: each one's own (10, 60, 30).
+    #[arg(long, value_name = "N", requires = "hard_cases")]
+    pub hard_scene_frames: Option<usize>,
+    /// With --hard-cases: run only this case (repeatable; default: every cloth case, then every
+    /// scene case).
+    #[arg(long = "hard-case", value_name = "NAME", requires = "hard_cases")]
+    pub hard_case_names: Vec<String>,
     /// With --hard-cases: run only this integrator (repeatable; default: every one of the
     /// matrix).
     #[arg(long = "hard-integrator", value_name = "NAME", requires = "hard_cases")]
@@ -145,8 +154,13 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
 
     if args.hard_cases {
         let chosen: Vec<&str> = args.hard_integrators.iter().map(String::as_str).collect();
+        let cases: Vec<&str> = if args.hard_case_names.is_empty() {
+            HARD_CASES.iter().chain(HARD_SCENES).copied().collect()
+        } else {
+            args.hard_case_names.iter().map(String::as_str).collect()
+        };
         let results = hard_cases(
-            HARD_CASES,
+            &cases,
             if chosen.is_empty() {
                 HARD_INTEGRATORS
             } else {
@@ -154,6 +168,7 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
             },
             HardCaseOptions {
                 frames: args.hard_frames,
+                scene_frames: args.hard_scene_frames,
                 ..HardCaseOptions::default()
             },
             &mut progress,

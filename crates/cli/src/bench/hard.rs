@@ -10,10 +10,19 @@
 //! - `zero-length spring`: vertex (N/2, N/2) moved onto (N/2, N/2 + 1);
 //! - `free-floating`: no pins, spinning at 2 rad/s about the vertical axis through the centre.
 //!
+//! The scene cases ([`HARD_SCENES`]) are built-in scenes with obstacles, run as they are defined
+//! (their own frames unless [`HardCaseOptions::scene_frames`] says otherwise) by the implicit
+//! integrators of the suite only (an explicit method would need hundreds of substeps a frame):
+//! - `bunny-drop`: the filled bunny dropped onto the frictionless ground, 10 frames of 1/60 s;
+//! - `cloth-drape-40`: the unpinned cloth falling onto a sphere over the ground, 60 frames;
+//! - `cloth-fall-40`: the unpinned cloth thrown down onto the ground at 5 m/s, 30 frames.
+//!
 //! Each run takes `frames` frames and ends `ok` (with the energy drift and the largest stretch),
 //! `refused` (the simulation would not start: an explicit method above its stability bound, or
 //! needing more than `max_substeps` substeps), or `failed` (an error during the run: a linear solve
-//! that failed, the energy watchdog, divergence).
+//! that failed, the energy watchdog, divergence). Every run also reports [`RunStats`] over the
+//! frames it finished: how many converged, the largest energy gain of one frame and the total
+//! change (J), and the deepest penetration of a free vertex into an obstacle (m).
 
 use std::time::Instant;
 
@@ -37,6 +46,12 @@ pub const HARD_CASES: &[&str] = &[
     "zero-length spring",
     "free-floating",
 ];
+
+/// The scene cases, run after [`HARD_CASES`] by the implicit integrators of [`HARD_INTEGRATORS`].
+pub const HARD_SCENES: &[&str] = &["bunny-drop", "cloth-drape-40", "cloth-fall-40"];
+
+/// Frames bunny-drop runs in the suite (a sixth of the scene's 60: the fall and the first contact).
+pub const BUNNY_DROP_FRAMES: usize = 10;
 
 /// The integrators run on each case.
 pub const HARD_INTEGRATORS: &[&str] = &[
@@ -68,6 +83,9 @@ pub struct HardCaseOptions {
     /// Explicit methods take the substeps their stability bound asks for, up to this many per
     /// frame; above it they are refused. Default 1000.
     pub max_substeps: usize,
+    /// Frames per run of a scene case ([`HARD_SCENES`]); `None` (the default): each one's own
+    /// ([`hard_scene`]).
+    pub scene_frames: Option<usize>,
 }
 
 impl Default for HardCaseOptions {
@@ -76,8 +94,54 @@ impl Default for HardCaseOptions {
             n: 40,
             frames: 30,
             max_substeps: 1000,
+            scene_frames: None,
         }
     }
+}
+
+/// What one run measured over the frames it finished (all of them for an `ok` run, those before
+/// the failing one for a failed run, none for a refused one).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct RunStats {
+    /// Frames that finished.
+    pub frames: usize,
+    /// Frames whose solver converged ([`crate::sim::StepReport::converged`] not `Some(false)`;
+    /// the explicit methods, which solve nothing, count every frame). At most `frames`.
+    pub converged: usize,
+    /// The largest energy change of one frame, max over n of E(n+1) − E(n) (J, total energy);
+    /// positive when some frame gained energy. `None` if no frame finished.
+    pub max_energy_step: Option<f64>,
+    /// E(last frame) − E(0) (J); 0 if no frame finished.
+    pub energy_change: f64,
+    /// The most negative [`crate::sim::Contact::signed_distance`] (m) of a free vertex from any
+    /// obstacle over the frames: ≤ 0, and 0 when nothing went inside (or the scene has no obstacle).
+    pub deepest_penetration: f64,
+}
+
+impl RunStats {
+    /// Add one finished frame: `energy` its total energy (J), `previous` the one before (J).
+    fn frame(&mut self, converged: bool, previous: f64, energy: f64, e0: f64, penetration: f64) {
+        self.frames += 1;
+        self.converged += usize::from(converged);
+        let step = energy - previous;
+        self.max_energy_step = Some(self.max_energy_step.map_or(step, |m| m.max(step)));
+        self.energy_change = energy - e0;
+        self.deepest_penetration = self.deepest_penetration.min(penetration);
+    }
+}
+
+/// The most negative signed distance (m) of a free vertex of `state` from the obstacles of
+/// `scene`, or 0 if none is inside (or there are no obstacles).
+pub fn deepest_penetration(scene: &Scene<3>, state: &State<3>) -> f64 {
+    let mut deepest = 0.0f64;
+    for contact in scene.contacts() {
+        for (x, &pinned) in state.positions.iter().zip(scene.is_pinned()) {
+            if !pinned {
+                deepest = deepest.min(contact.signed_distance(x));
+            }
+        }
+    }
+    deepest
 }
 
 /// How one run ended.
@@ -124,11 +188,15 @@ pub struct HardResult {
     pub integrator: String,
     /// How it ended.
     pub outcome: HardOutcome,
+    /// What it measured over the frames it finished.
+    pub stats: RunStats,
     /// Wall time of the run, s.
     pub wall_time_s: f64,
 }
 
-/// Run every integrator of `integrators` on every case of `cases`.
+/// Run every integrator of `integrators` on every case of `cases` ([`HARD_CASES`] and
+/// [`HARD_SCENES`]); the scene cases only with the implicit ones (an explicit integrator gives no
+/// cell there).
 ///
 /// # Errors
 /// [`BenchError::Scene`] for an unknown case or integrator name, or a size below 4.
@@ -138,7 +206,7 @@ pub fn hard_cases(
     options: HardCaseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<HardResult>, BenchError> {
-    if options.n < 4 {
+    if options.n < 4 && cases.iter().any(|c| !HARD_SCENES.contains(c)) {
         return Err(BenchError::Scene(format!(
             "hard cases need cloth-N with N ≥ 4, got {}",
             options.n
@@ -146,11 +214,21 @@ pub fn hard_cases(
     }
     let mut results = Vec::new();
     for &case_name in cases {
+        let is_scene = HARD_SCENES.contains(&case_name);
         for &integrator in integrators {
-            let (scene, state) = hard_case(case_name, options.n)?;
+            let (scene, state, frames) = if is_scene {
+                let (scene, state, frames) = hard_scene(case_name)?;
+                (scene, state, options.scene_frames.unwrap_or(frames))
+            } else {
+                let (scene, state) = hard_case(case_name, options.n)?;
+                (scene, state, options.frames)
+            };
             let settings = hard_case_settings(integrator, &scene, options.max_substeps)?;
+            if is_scene && settings.integrator.is_explicit() {
+                continue;
+            }
             let start = Instant::now();
-            let outcome = run(scene, state, settings, options.frames);
+            let (outcome, stats) = run(scene, state, settings, frames);
             let wall_time_s = start.elapsed().as_secs_f64();
             progress(&format!(
                 "{case_name}, {integrator}: {} in {wall_time_s:.1} s",
@@ -164,6 +242,7 @@ pub fn hard_cases(
                 case: case_name.into(),
                 integrator: integrator.into(),
                 outcome,
+                stats,
                 wall_time_s,
             });
         }
@@ -171,24 +250,30 @@ pub fn hard_cases(
     Ok(results)
 }
 
-fn run(scene: Scene<3>, state: State<3>, settings: Settings, frames: usize) -> HardOutcome {
+fn run(
+    scene: Scene<3>,
+    state: State<3>,
+    settings: Settings,
+    frames: usize,
+) -> (HardOutcome, RunStats) {
     let scale = energy_scale(&scene, &state.positions);
+    let mut stats = RunStats::default();
     let mut sim = match Simulation::new(scene, state, settings) {
         Ok(sim) => sim,
         Err(e) => {
-            return HardOutcome::Refused {
-                error: e.to_string(),
-            }
+            let error = e.to_string();
+            return (HardOutcome::Refused { error }, stats);
         }
     };
     let e0 = sim.energy().total;
+    let mut previous = e0;
     let mut max_stretch = sim.scene().max_stretch(sim.state());
     let (mut unconverged, mut max_pieces) = (0, 1);
     for frame in 1..=frames {
         let report = match sim.step() {
             Ok(report) => report,
             Err(e) => {
-                return match e {
+                let outcome = match e {
                     SimError::UnstableStep { .. } => HardOutcome::Refused {
                         error: e.to_string(),
                     },
@@ -198,20 +283,27 @@ fn run(scene: Scene<3>, state: State<3>, settings: Settings, frames: usize) -> H
                         max_stretch,
                     },
                 };
+                return (outcome, stats);
             }
         };
-        if report.converged == Some(false) {
+        let converged = report.converged != Some(false);
+        if !converged {
             unconverged += 1;
         }
         max_pieces = max_pieces.max(report.substeps);
         max_stretch = max_stretch.max(sim.scene().max_stretch(sim.state()));
+        let energy = sim.energy().total;
+        let penetration = deepest_penetration(sim.scene(), sim.state());
+        stats.frame(converged, previous, energy, e0, penetration);
+        previous = energy;
     }
-    HardOutcome::Ok {
+    let outcome = HardOutcome::Ok {
         energy_drift: (sim.energy().total - e0) / (e0.abs() + scale),
         max_stretch,
         unconverged,
         max_pieces,
-    }
+    };
+    (outcome, stats)
 }
 
 /// E_g = M |g| L (J): total mass, gravity, diagonal of the bounding box of `positions` — the
@@ -311,6 +403,40 @@ impl Rng {
     }
 }
 
+/// The scene case `name` (one of [`HARD_SCENES`]): the built-in scene's scene and initial state,
+/// and the frames the suite runs it for ([`BUNNY_DROP_FRAMES`] for bunny-drop, the scene's own
+/// for the others).
+///
+/// # Errors
+/// [`BenchError::Scene`] for an unknown name or a scene that cannot be built.
+pub fn hard_scene(name: &str) -> Result<(Scene<3>, State<3>, usize), BenchError> {
+    let scene_error = |e: SimError| BenchError::Scene(format!("hard case {name:?}: {e}"));
+    let setup = match name {
+        "bunny-drop" => scenes::bunny_drop().map(|s| (s, BUNNY_DROP_FRAMES)),
+        "cloth-drape-40" => scenes::cloth_drape(40).map(|s| {
+            let frames = s.steps;
+            (s, frames)
+        }),
+        "cloth-fall-40" => scenes::cloth_fall(40).map(|s| {
+            let frames = s.steps;
+            (s, frames)
+        }),
+        other => {
+            return Err(BenchError::Scene(format!(
+                "unknown hard case {other:?}; expected one of: {}",
+                HARD_CASES
+                    .iter()
+                    .chain(HARD_SCENES)
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )))
+        }
+    };
+    let (setup, frames) = setup.map_err(scene_error)?;
+    Ok((setup.scene, setup.initial, frames))
+}
+
 /// The hard case `name` (one of [`HARD_CASES`]) on cloth-`n`: the scene and its initial state, as
 /// the module documentation describes them.
 ///
@@ -395,7 +521,12 @@ pub fn hard_case(name: &str, n: usize) -> Result<(Scene<3>, State<3>), BenchErro
         other => {
             return Err(BenchError::Scene(format!(
                 "unknown hard case {other:?}; expected one of: {}",
-                HARD_CASES.join(", ")
+                HARD_CASES
+                    .iter()
+                    .chain(HARD_SCENES)
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )))
         }
     })

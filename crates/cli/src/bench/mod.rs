@@ -46,8 +46,9 @@ use std::path::PathBuf;
 
 pub use cli::{run_command, BenchArgs};
 pub use hard::{
-    energy_scale, hard_case, hard_case_settings, hard_cases, HardCaseOptions, HardOutcome,
-    HardResult, HARD_CASES, HARD_CASE_OVERRIDES, HARD_INTEGRATORS,
+    deepest_penetration, energy_scale, hard_case, hard_case_settings, hard_cases, hard_scene,
+    HardCaseOptions, HardOutcome, HardResult, RunStats, BUNNY_DROP_FRAMES, HARD_CASES,
+    HARD_CASE_OVERRIDES, HARD_INTEGRATORS, HARD_SCENES,
 };
 pub use measure::{ErrorMeter, Measures};
 pub use output::{

@@ -201,7 +201,8 @@ pub fn format_sweep_table(rows: &[SweepRow]) -> String {
     s
 }
 
-/// The hard-case matrix (cases down, integrators across), then one line per run that did not
+/// The hard-case matrix (cases down, integrators across; `-` where a pair was not run), then one
+/// line per run with its [`RunStats`](crate::bench::RunStats), then one line per run that did not
 /// finish, with its error.
 pub fn format_hard_cases(results: &[HardResult]) -> String {
     let mut integrators: Vec<&str> = Vec::new();
@@ -263,9 +264,46 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
         }
         s += "\n";
     }
+    s += &format_run_stats(results);
     if !details.is_empty() {
         s += "\n";
         s += &details;
+    }
+    s
+}
+
+/// One line per run of [`RunStats`](crate::bench::RunStats): frames converged of frames
+/// finished, the largest energy change of one frame and the total change (J), and the deepest
+/// penetration into an obstacle (m, ≤ 0; 0 when nothing went inside). `-` where no frame finished.
+fn format_run_stats(results: &[HardResult]) -> String {
+    let mut s = format!(
+        "\n{:<20} | {:<18} | {:<8} | {:>9} | {:>13} | {:>13} | {:>14}\n",
+        "case",
+        "integrator",
+        "outcome",
+        "converged",
+        "max dE/frame J",
+        "dE total J",
+        "penetration m"
+    );
+    for r in results {
+        let outcome = match r.outcome {
+            HardOutcome::Ok { .. } => "ok",
+            HardOutcome::Refused { .. } => "refused",
+            HardOutcome::Failed { .. } => "failed",
+        };
+        let st = &r.stats;
+        let (step, total) = match st.max_energy_step {
+            Some(step) => (format!("{step:+.3e}"), format!("{:+.3e}", st.energy_change)),
+            None => ("-".into(), "-".into()),
+        };
+        s += &format!(
+            "{:<20} | {:<18} | {outcome:<8} | {:>9} | {step:>13} | {total:>13} | {:>14.3e}\n",
+            r.case,
+            r.integrator,
+            format!("{}/{}", st.converged, st.frames),
+            st.deepest_penetration
+        );
     }
     s
 }
