@@ -47,6 +47,11 @@
 //! # normal = [0.0, 1.0, 0.0]
 //! # friction = 0.0
 //!
+//! # [barrier]              # how newton, newton-cg and lbfgs model contact (docs/contact.md)
+//! # distance = 0.001       # d̂, m: the barrier's reach; default 1e-3 of the mesh's bounding-box diagonal
+//! # stiffness = 1e7        # κ̂, 1/s² per unit of vertex mass; default 1000 · 9.80665 / d̂
+//! # friction_velocity = 0.001  # ε_v, m/s: friction's smoothing velocity
+//!
 //! # [initial]              # the state at time 0; default: at rest
 //! # velocity = [0.0, -5.0, 0.0]   # m/s, every vertex but the pinned ones
 //!
@@ -93,7 +98,7 @@ use hooke_mesh::{generators, Bending, MassModel, SpringMesh};
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
-use crate::contact::{Contact, Shape};
+use crate::contact::{BarrierSettings, Contact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{
@@ -171,6 +176,7 @@ struct Document {
     damping: Damping0,
     #[serde(default)]
     contact: Vec<ContactSection>,
+    barrier: Option<BarrierSection>,
     initial: Option<InitialSection>,
     integrator: IntegratorSection,
     run: RunSection,
@@ -217,6 +223,15 @@ struct TransformSection {
 struct RotateSection {
     axis: Option<Vec<f64>>,
     degrees: f64,
+}
+
+/// `[barrier]`: the contact barrier's settings ([`BarrierSettings`]).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BarrierSection {
+    distance: Option<f64>,
+    stiffness: Option<f64>,
+    friction_velocity: Option<f64>,
 }
 
 /// `[initial]`: the state at time 0 beyond the mesh's positions.
@@ -970,6 +985,21 @@ impl Context<'_> {
             );
         }
         scene = scene.with_contacts(contacts).map_err(sim("contact"))?;
+        if let Some(b) = &doc.barrier {
+            if doc.contact.is_empty() {
+                return Err(self.invalid(
+                    "barrier",
+                    "the scene has no [[contact]] obstacle for the barrier to act on",
+                ));
+            }
+            let defaults = BarrierSettings::default();
+            let barrier = BarrierSettings {
+                distance: b.distance,
+                stiffness: b.stiffness,
+                friction_velocity: b.friction_velocity.unwrap_or(defaults.friction_velocity),
+            };
+            scene = scene.with_barrier(barrier).map_err(sim("barrier"))?;
+        }
         let integrator: Integrator = i
             .method
             .parse()
@@ -1619,5 +1649,43 @@ tolerance = 1e-9
                 .to_string();
             assert!(err.contains(expected), "{initial}: {err}");
         }
+    }
+
+    #[test]
+    fn the_barrier_section_sets_the_contact_model_and_names_bad_keys() {
+        let ground =
+            "[[contact]]\nshape = \"plane\"\npoint = [0.0, -1.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\n";
+        let setup = parse(&format!(
+            "{NEWTON}{ground}[barrier]\ndistance = 0.002\nstiffness = 5e6\nfriction_velocity = 0.01\n"
+        ))
+        .unwrap();
+        let model = setup.scene.contact_model().unwrap();
+        assert_eq!(
+            (model.distance, model.stiffness, model.friction_velocity),
+            (0.002, 5e6, 0.01)
+        );
+        // Defaults: d̂ = 1e-3 of the cloth's diagonal (√2 m), κ̂ = 1000 g₀ / d̂.
+        let model = parse(&format!("{NEWTON}{ground}"))
+            .unwrap()
+            .scene
+            .contact_model()
+            .unwrap();
+        assert!((model.distance - 1e-3 * 2f64.sqrt()).abs() < 1e-15);
+        assert!((model.stiffness - 1000.0 * 9.80665 / model.distance).abs() < 1e-6);
+        for (barrier, expected) in [
+            ("distance = 0.0", "barrier.distance"),
+            ("stiffness = -1.0", "barrier.stiffness"),
+            ("friction_velocity = nan", "barrier.friction_velocity"),
+            ("reach = 1.0", "reach"),
+        ] {
+            let err = parse(&format!("{NEWTON}{ground}[barrier]\n{barrier}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(expected), "{barrier}: {err}");
+        }
+        let err = parse(&format!("{NEWTON}[barrier]\ndistance = 0.01\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("no [[contact]]"), "{err}");
     }
 }
