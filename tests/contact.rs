@@ -67,8 +67,10 @@ fn settings(integrator: Integrator) -> Settings {
 
 /// Run `frames` frames; per frame check that every free vertex is outside every obstacle (signed
 /// distance > 0: the barrier is infinite at the surface, so the solve never puts one there) and
-/// that the converged flag and the residual agree. Returns the total energies, E₀ first.
-fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
+/// that the converged flag and the residual agree. Returns the total energies, E₀ first, and
+/// whether every frame converged.
+fn run_counted(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> (Vec<f64>, bool) {
+    let mut converged = true;
     let mut energies = vec![sim.energy().total];
     for frame in 1..=frames {
         let report = sim.step().unwrap_or_else(|e| panic!("frame {frame}: {e}"));
@@ -81,6 +83,7 @@ fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
             );
         }
         assert_eq!(report.converged, Some(solver.stop.is_converged()));
+        converged &= solver.stop.is_converged();
         let deepest = sim.smallest_contact_distance();
         assert!(
             deepest > 0.0,
@@ -88,7 +91,12 @@ fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
         );
         energies.push(sim.energy().total);
     }
-    energies
+    (energies, converged)
+}
+
+/// [`run_counted`]'s energies.
+fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
+    run_counted(sim, frames, tolerance).0
 }
 
 /// E(n+1) ≤ E(n) + 1e-9 · max |E|: backward Euler without damping or friction gains no energy, so
@@ -330,4 +338,21 @@ fn friction_holds_a_cloth_on_a_slope_that_a_slippery_one_slides_down() {
     assert!(held.abs() <= 2e-3, "μ = 0.5: moved {held} m down the slope");
     let slid = slide_on_a_slope(0.1, 30);
     assert!(slid >= 0.6, "μ = 0.1: moved only {slid} m down the slope");
+}
+
+#[test]
+fn bunny_drop_under_newton_lands_without_penetration_or_inverted_tetrahedra() {
+    // Free fall for 11 frames, the impact at frame 12, then settling: every frame converged, no
+    // vertex inside the ground, no tetrahedron inside out, and no energy gained.
+    let setup = match hooke::sim::scenes::builtin("bunny-drop").unwrap().unwrap() {
+        hooke::sim::scenes::AnySetup::Three(s) => s,
+        hooke::sim::scenes::AnySetup::Two(_) => unreachable!("bunny-drop is 3D"),
+    };
+    let mut sim =
+        Simulation::new(setup.scene, setup.initial, settings(Integrator::Newton)).unwrap();
+    let (energies, converged) = run_counted(&mut sim, 16, DEFAULT_STEP_TOLERANCE);
+    assert!(converged, "a frame of bunny-drop did not converge");
+    assert_no_energy_gain(&energies, "bunny-drop");
+    assert_eq!(sim.scene().inverted_tetrahedra(&sim.state().positions), 0);
+    assert!(sim.scene().mesh().tetrahedra().len() > 1000);
 }

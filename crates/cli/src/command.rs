@@ -511,6 +511,8 @@ fn run_setup<const D: usize>(
             total_energy: energy.total,
             contact_distance: (!sim.scene().contacts().is_empty())
                 .then(|| sim.smallest_contact_distance()),
+            inverted_tetrahedra: (!sim.scene().mesh().tetrahedra().is_empty())
+                .then(|| sim.scene().inverted_tetrahedra(&sim.state().positions)),
             max_stretch: sim.scene().max_stretch(sim.state()),
             solver_iterations: report.and_then(|r| r.solver).map(|s| s.iterations),
             solver_residual: report.and_then(|r| r.solver).map(|s| s.residual),

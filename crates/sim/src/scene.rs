@@ -459,6 +459,31 @@ impl<const D: usize> Scene<D> {
         }
     }
 
+    /// The tetrahedra of the mesh (solids; none for cloth and graphs) that are inverted at
+    /// `positions`: whose signed volume has lost the sign it has at the mesh's rest positions (or
+    /// become zero). A mass-spring solid has no volume term, so a hard impact solved inexactly can
+    /// turn elements inside out; 0 in dimensions other than 3.
+    pub fn inverted_tetrahedra(&self, positions: &[SVector<f64, D>]) -> usize {
+        if D != 3 {
+            return 0;
+        }
+        let rest = self.mesh.positions();
+        let volume = |p: &[SVector<f64, D>], t: &[u32; 4]| {
+            let [a, b, c, d] = t.map(|i| p[i as usize]);
+            let (u, v, w) = (b - a, c - a, d - a);
+            u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+                + u[2] * (v[0] * w[1] - v[1] * w[0])
+        };
+        self.mesh
+            .tetrahedra()
+            .iter()
+            .filter(|t| {
+                let now = volume(positions, t);
+                now == 0.0 || now.signum() != volume(rest, t).signum()
+            })
+            .count()
+    }
+
     /// Largest stretch ratio |r|/l over the springs in `state` (1 at rest).
     pub fn max_stretch(&self, state: &State<D>) -> f64 {
         hooke_assembly::max_stretch(self.mesh.springs(), &state.positions)

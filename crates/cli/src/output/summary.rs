@@ -120,6 +120,10 @@ pub struct StepRecord {
     /// inside one; absent for scenes without obstacles and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_distance: Option<f64>,
+    /// Tetrahedra turned inside out (signed volume of the opposite sign to the rest mesh's, or
+    /// zero): present for tetrahedral meshes, absent otherwise and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inverted_tetrahedra: Option<usize>,
     /// Largest spring stretch ratio maxₛ |r|/l (current over rest length), dimensionless:
     /// 1 at rest, above 1 when stretched.
     #[serde(deserialize_with = "f64_or_nan")]
@@ -228,6 +232,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.375,
                     contact_distance: None,
+                    inverted_tetrahedra: None,
                     max_stretch: 1.0625,
                     solver_iterations: Some(7),
                     solver_residual: Some(3.5e-11),
@@ -244,6 +249,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.5,
                     contact_distance: None,
+                    inverted_tetrahedra: None,
                     max_stretch: 1.1,
                     solver_iterations: None,
                     solver_residual: None,
