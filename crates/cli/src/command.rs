@@ -21,8 +21,8 @@ use nalgebra::SVector;
 
 use output::{
     progress_bar, render_preview, write_summary, write_timings, OutputError, PreviewInput,
-    PreviewPositions, ResidualRecord, RunSummary, RunTimings, SolverSettingsRecord, StepRecord,
-    StepTiming,
+    PreviewObstacle, PreviewPositions, ResidualRecord, RunSummary, RunTimings,
+    SolverSettingsRecord, StepRecord, StepTiming,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -622,9 +622,33 @@ fn run_setup<const D: usize>(
         crate::sim::Shape::Box { min, max } if D == 2 => Some(([min[0], min[1]], [max[0], max[1]])),
         _ => None,
     });
+    // Obstacles of 3D scenes (a 2D box is the view's bounds above).
+    let obstacles: Vec<PreviewObstacle> = if D == 3 {
+        sim.scene()
+            .contacts()
+            .iter()
+            .filter_map(|c| {
+                let v3 = |p: &nalgebra::SVector<f64, D>| nalgebra::Vector3::new(p[0], p[1], p[2]);
+                match c.shape {
+                    crate::sim::Shape::Plane { point, normal } => Some(PreviewObstacle::Plane {
+                        point: v3(&point),
+                        normal: v3(&normal),
+                    }),
+                    crate::sim::Shape::Sphere { center, radius } => Some(PreviewObstacle::Sphere {
+                        center: v3(&center),
+                        radius,
+                    }),
+                    _ => None,
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     render_preview(
         &args.out.join("preview.png"),
         &PreviewInput {
+            obstacles: &obstacles,
             title: &title,
             positions: preview_positions(&state.positions),
             triangles: mesh.triangles(),

@@ -13,7 +13,7 @@ mod timings;
 
 use std::path::{Path, PathBuf};
 
-pub use preview::{render_preview, PreviewInput, PreviewPositions};
+pub use preview::{render_preview, PreviewInput, PreviewObstacle, PreviewPositions};
 pub use progress::progress_bar;
 pub use summary::{
     write_summary, RateRecord, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,

@@ -57,6 +57,30 @@ const PARTICLE: RGBColor = RGBColor(40, 90, 160);
 const SPRING_2D: RGBColor = RGBColor(120, 135, 160);
 const BOX_EDGE: RGBColor = RGBColor(60, 64, 72);
 
+const GROUND: RGBColor = RGBColor(214, 218, 210);
+const GROUND_LINE: RGBColor = RGBColor(176, 182, 170);
+const SPHERE: [f64; 3] = [150.0, 154.0, 162.0];
+
+/// An obstacle of a 3D contact scene, drawn behind the mesh (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PreviewObstacle {
+    /// A plane through `point` with unit `normal`: drawn as a square patch under the mesh's
+    /// footprint, with grid lines.
+    Plane {
+        /// A point of the plane, m.
+        point: Vector3<f64>,
+        /// Its unit normal.
+        normal: Vector3<f64>,
+    },
+    /// A solid sphere, drawn as a shaded disc.
+    Sphere {
+        /// Centre, m.
+        center: Vector3<f64>,
+        /// Radius, m.
+        radius: f64,
+    },
+}
+
 /// Vertex positions of the frame to draw.
 #[derive(Debug, Clone, Copy)]
 pub enum PreviewPositions<'a> {
@@ -95,6 +119,41 @@ pub struct PreviewInput<'a> {
     /// The box of a 2D scene as (min, max) corners; the view is fitted to it. `None` fits the
     /// view to the particles. Ignored in 3D.
     pub bounds_2d: Option<([f64; 2], [f64; 2])>,
+    /// Obstacles of a 3D scene, drawn behind the mesh; the view is fitted to them too. Ignored
+    /// in 2D.
+    pub obstacles: &'a [PreviewObstacle],
+}
+
+/// The four corners of the patch of `plane` (point, unit normal) drawn under `positions`: their
+/// footprint on the plane, grown by a quarter on every side (a unit square about the point if
+/// there is none).
+fn plane_patch(
+    point: &Vector3<f64>,
+    normal: &Vector3<f64>,
+    positions: &[Vector3<f64>],
+) -> [Vector3<f64>; 4] {
+    let helper = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let t1 = normal.cross(&helper).normalize();
+    let t2 = normal.cross(&t1);
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for p in positions.iter().filter(|p| p.iter().all(|x| x.is_finite())) {
+        let (a, b) = ((p - point).dot(&t1), (p - point).dot(&t2));
+        lo = (lo.0.min(a), lo.1.min(b));
+        hi = (hi.0.max(a), hi.1.max(b));
+    }
+    if lo.0.is_nan() || lo.0 > hi.0 {
+        (lo, hi) = ((-0.5, -0.5), (0.5, 0.5));
+    }
+    let grow = 0.25 * (hi.0 - lo.0).max(hi.1 - lo.1).max(1e-3);
+    let (lo, hi) = ((lo.0 - grow, lo.1 - grow), (hi.0 + grow, hi.1 + grow));
+    [(lo.0, lo.1), (hi.0, lo.1), (hi.0, hi.1), (lo.0, hi.1)].map(|(a, b)| point + t1 * a + t2 * b)
 }
 
 /// Renders `input` to a [`PREVIEW_WIDTH`] × [`PREVIEW_HEIGHT`] PNG at `path`, atomically.
@@ -428,9 +487,81 @@ fn draw_3d(
     let projected: Vec<Option<(f64, f64, f64)>> =
         positions.iter().map(|p| cam.project(p)).collect();
     let skipped = projected.iter().filter(|p| p.is_none()).count();
-    let (min, max) = bounding_box(projected.iter().flatten().map(|&(u, v, _)| (u, v)))
-        .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
+    // Obstacles in the camera's coordinates: plane patches as projected corners, spheres as
+    // (centre, radius).
+    let mut patches = Vec::new();
+    let mut discs = Vec::new();
+    for obstacle in input.obstacles {
+        match *obstacle {
+            PreviewObstacle::Plane { point, normal } => {
+                let corners = plane_patch(&point, &normal, positions).map(|c| cam.project(&c));
+                if let [Some(a), Some(b), Some(c), Some(d)] = corners {
+                    patches.push([a, b, c, d]);
+                }
+            }
+            PreviewObstacle::Sphere { center, radius } => {
+                if let Some(c) = cam.project(&center).filter(|_| radius.is_finite()) {
+                    discs.push((c, radius));
+                }
+            }
+        }
+    }
+    let obstacle_points = patches
+        .iter()
+        .flat_map(|p| p.iter().map(|&(u, v, _)| (u, v)))
+        .chain(
+            discs
+                .iter()
+                .flat_map(|&((u, v, _), r)| [(u - r, v - r), (u + r, v + r)]),
+        );
+    let (min, max) = bounding_box(
+        projected
+            .iter()
+            .flatten()
+            .map(|&(u, v, _)| (u, v))
+            .chain(obstacle_points),
+    )
+    .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
     let fit = Fit::new(min, max, layout);
+    for patch in &patches {
+        let pts: Vec<(i32, i32)> = patch.iter().map(|&(u, v, _)| px(fit.map(u, v))).collect();
+        draw!(area, Polygon::new(pts.clone(), GROUND.filled()));
+        // Grid lines: eight across each way.
+        for k in 0..=8 {
+            let t = k as f64 / 8.0;
+            let lerp = |a: (f64, f64, f64), b: (f64, f64, f64)| {
+                px(fit.map(a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1)))
+            };
+            let width = (layout.unit * 0.5).round().max(1.0) as u32;
+            for (a, b, c, d) in [
+                (patch[0], patch[1], patch[3], patch[2]),
+                (patch[0], patch[3], patch[1], patch[2]),
+            ] {
+                draw!(
+                    area,
+                    PathElement::new(
+                        vec![lerp(a, b), lerp(c, d)],
+                        GROUND_LINE.stroke_width(width)
+                    )
+                );
+            }
+        }
+    }
+    for &((u, v, _), r) in &discs {
+        let centre = fit.map(u, v);
+        let radius = dist(centre, fit.map(u + r, v));
+        // A disc shaded in rings towards the light's side.
+        for ring in 0..12 {
+            let f = 1.0 - ring as f64 / 12.0;
+            let shift = (1.0 - f) * 0.35 * radius;
+            let c = (centre.0 - shift, centre.1 - shift);
+            let colour = shade(SPHERE, 0.75 + 0.35 * (1.0 - f));
+            draw!(
+                area,
+                Circle::new(px(c), (radius * f).round() as i32, colour.filled())
+            );
+        }
+    }
     let screen: Vec<Option<((f64, f64), f64)>> = projected
         .iter()
         .map(|p| p.map(|(u, v, d)| (fit.map(u, v), d)))
@@ -844,6 +975,7 @@ mod tests {
             springs: lines.len(),
             pinned,
             bounds_2d: None,
+            obstacles: &[],
         }
     }
 
@@ -931,6 +1063,7 @@ mod tests {
             springs: lines.len(),
             pinned: &[0, 7],
             bounds_2d: Some(([0.0, 0.0], [1.0, 1.0])),
+            obstacles: &[],
         };
         let path = dir.path().join("seed.png");
         render_preview(&path, &input).unwrap();
@@ -938,6 +1071,7 @@ mod tests {
 
         let unboxed = PreviewInput {
             bounds_2d: None,
+            obstacles: &[],
             ..input
         };
         render_preview_sized(&path, &unboxed, 300, 500).unwrap();
@@ -994,6 +1128,7 @@ mod tests {
                     springs: 4,
                     pinned: &[1, 2, 42],
                     bounds_2d: bounds,
+                    obstacles: &[],
                 };
                 render_preview_sized(&path, &input, 120, 90).unwrap();
                 assert_eq!(png_size(&path), (120, 90));
@@ -1042,5 +1177,45 @@ mod tests {
         let (p, t, l) = hanging_cloth(4);
         render_preview(&path, &cloth_input(&p, &t, &l, &[0, 3])).unwrap();
         assert_eq!(png_size(&path), (800, 600));
+    }
+
+    #[test]
+    fn obstacles_are_drawn_behind_the_mesh() {
+        // A ground plane under the cloth and a sphere beside it: both change the picture, the
+        // ground's grey appears where the bare picture has background, and the cloth keeps its
+        // pixels' colours where it covers them.
+        let (p, t, l) = hanging_cloth(6);
+        let bare = rasterize(&cloth_input(&p, &t, &l, &[]), 160, 120).unwrap();
+        let obstacles = [
+            PreviewObstacle::Plane {
+                point: Vector3::new(0.0, -1.0, 0.0),
+                normal: Vector3::y(),
+            },
+            PreviewObstacle::Sphere {
+                center: Vector3::new(2.0, -0.5, 0.5),
+                radius: 0.3,
+            },
+        ];
+        let with = rasterize(
+            &PreviewInput {
+                obstacles: &obstacles,
+                ..cloth_input(&p, &t, &l, &[])
+            },
+            160,
+            120,
+        )
+        .unwrap();
+        assert_eq!(bare.len(), with.len());
+        let ground = with
+            .chunks_exact(3)
+            .filter(|c| (c[0], c[1], c[2]) == (GROUND.0, GROUND.1, GROUND.2))
+            .count();
+        assert!(ground > 100, "{ground} ground pixels");
+        assert_eq!(
+            bare.chunks_exact(3)
+                .filter(|c| (c[0], c[1], c[2]) == (GROUND.0, GROUND.1, GROUND.2))
+                .count(),
+            0
+        );
     }
 }
