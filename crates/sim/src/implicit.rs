@@ -885,7 +885,7 @@ impl<const D: usize> BackwardEuler<D> {
                 let report = chebyshev.solve(pd, springs, &self.y, positions);
                 SolveSummary {
                     iterations: report.iterations,
-                    residual: report.changes.last().copied().unwrap_or(0.0),
+                    residual: report.changes.last().copied().unwrap_or(0.0) / h,
                     stop: report.stop,
                     substeps: 1,
                 }
@@ -901,7 +901,7 @@ impl<const D: usize> BackwardEuler<D> {
                     .map_err(SimError::solver)?;
                 SolveSummary {
                     iterations: report.iterations,
-                    residual: report.changes.last().copied().unwrap_or(0.0),
+                    residual: report.changes.last().copied().unwrap_or(0.0) / h,
                     stop: report.stop,
                     substeps: 1,
                 }

@@ -97,7 +97,7 @@ impl Integrator {
                 "m/s",
             )),
             Integrator::ProjectiveDynamics | Integrator::ChebyshevPd => {
-                Some(("largest position change in the last iteration", "m"))
+                Some(("largest position change in the last iteration / h", "m/s"))
             }
             Integrator::Linearized => Some(("relative linear residual |b - A v| / |b|", "1")),
             Integrator::ExplicitEuler | Integrator::SymplecticEuler => None,
@@ -546,10 +546,10 @@ pub struct SolverOptions {
     /// Iterations: the linear solver's limit (linearized), Newton's iteration limit (newton), the
     /// iterations per step (pd). At least 1.
     pub iterations: Option<usize>,
-    /// Tolerance, relative: the linear solver's residual (linearized), Newton's gradient (newton),
-    /// PD's position change (pd). Finite; > 0 for the linearised integrator, ≥ 0 for Newton and PD
-    /// (0: Newton stops only at its iteration limit or the round-off floor, PD always runs its
-    /// iterations).
+    /// Tolerance: the linear solver's relative residual (linearized, dimensionless); the step
+    /// size of newton, newton-cg and lbfgs (m/s); PD's and Chebyshev PD's position change per
+    /// iteration divided by h (m/s). Finite; > 0 for the linearised integrator, ≥ 0 for the others
+    /// (0: Newton stops only at its iteration limit, PD always runs its iterations).
     pub tolerance: Option<f64>,
     /// Newton's relaxation preset (newton only).
     pub relaxation: Option<RelaxationPreset>,

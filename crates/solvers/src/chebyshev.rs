@@ -42,8 +42,8 @@ pub struct ChebyshevParams {
     /// Restart to plain PD when Φ rises. Default true; `false` is the paper's unguarded method, for
     /// comparison only (it can gain energy).
     pub restart: bool,
-    /// Stop when the largest change of a position in one iteration is at most `tolerance` times
-    /// the largest displacement from the initial guess, as [`crate::PdParams::tolerance`]. Default 0.
+    /// Stop when the largest change of a position coordinate in one iteration divided by h is at
+    /// most `tolerance` (m/s), as [`crate::PdParams::tolerance`]. Default 0.
     pub tolerance: f64,
 }
 
@@ -251,7 +251,7 @@ impl<const D: usize> ChebyshevPd<D> {
             report.iterations += 1;
             report.objectives.push(phi);
             report.changes.push(change);
-            if change <= p.tolerance * largest_displacement {
+            if change <= p.tolerance * pd.time_step() {
                 report.stop = StopReason::Converged;
                 break;
             }

@@ -38,7 +38,7 @@ pub enum PdError {
 }
 
 impl PdParams {
-    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (relative), and
+    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (m/s), and
     /// [`CholeskyParams::validate`].
     ///
     /// # Errors
@@ -60,9 +60,10 @@ impl PdParams {
 pub struct PdParams {
     /// Iterations per step (the method's usual fixed budget). Default 10.
     pub max_iterations: usize,
-    /// Also stop when the largest change of a position in one iteration is at most `tolerance`
-    /// times the largest displacement from the initial guess (relative, dimensionless). Default 0:
-    /// always run `max_iterations`.
+    /// Also stop when the largest change of a position coordinate in one iteration, divided by h,
+    /// is at most `tolerance` (m/s: the unit of Newton's step size, and a scale that does not
+    /// vanish with the motion). PD converges linearly, so the distance to the solution is larger
+    /// than the last change, by 1/(1 − ρ) for a rate ρ. Default 0: always run `max_iterations`.
     pub tolerance: f64,
     /// Evaluate Φ after every iteration (one extra pass over springs and vertices) for the report.
     /// Default false: benchmarks measure the bare iteration.
@@ -301,6 +302,11 @@ impl<const D: usize> ProjectiveDynamics<D> {
         inertia + self.h * self.h * energy
     }
 
+    /// The time step h (s) the matrix was built for.
+    pub fn time_step(&self) -> f64 {
+        self.h
+    }
+
     /// Run projective dynamics for the step with inertial target `y` (per vertex, m). `x` holds the
     /// initial guess (usually y) with the pinned vertices at their prescribed positions, and the
     /// result on return (pinned vertices untouched). The report's stop is
@@ -351,7 +357,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
                 report.stop = StopReason::NonFinite;
                 break;
             }
-            if change <= p.tolerance * largest_displacement {
+            if change <= p.tolerance * self.h {
                 report.stop = StopReason::Converged;
                 break;
             }

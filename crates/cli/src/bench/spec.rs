@@ -11,8 +11,8 @@ use crate::bench::BenchError;
 pub enum SolverKind {
     /// `pd:K`: projective dynamics, K iterations from x⁰ = y (the factorisation is done once, apart).
     Pd,
-    /// `pd-tol:T`: projective dynamics until the largest position change of an iteration is at
-    /// most T times the largest displacement from y (at most 10,000 iterations).
+    /// `pd-tol:T`: projective dynamics until the largest position change of an iteration divided
+    /// by h is at most T m/s (at most 10,000 iterations).
     PdTol,
     /// `newton:K`: Newton on Φ from x⁰ = y, exactly K iterations (fewer only if it stagnates at
     /// the round-off floor).
