@@ -421,17 +421,7 @@ pub fn hard_scene(name: &str) -> Result<(Scene<3>, State<3>, usize), BenchError>
             let frames = s.steps;
             (s, frames)
         }),
-        other => {
-            return Err(BenchError::Scene(format!(
-                "unknown hard case {other:?}; expected one of: {}",
-                HARD_CASES
-                    .iter()
-                    .chain(HARD_SCENES)
-                    .copied()
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )))
-        }
+        other => return Err(unknown_case(other)),
     };
     let (setup, frames) = setup.map_err(scene_error)?;
     Ok((setup.scene, setup.initial, frames))
@@ -518,16 +508,19 @@ pub fn hard_case(name: &str, n: usize) -> Result<(Scene<3>, State<3>), BenchErro
             }
             (scene, state)
         }
-        other => {
-            return Err(BenchError::Scene(format!(
-                "unknown hard case {other:?}; expected one of: {}",
-                HARD_CASES
-                    .iter()
-                    .chain(HARD_SCENES)
-                    .copied()
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )))
-        }
+        other => return Err(unknown_case(other)),
     })
+}
+
+/// The error for a hard case of that name that does not exist, listing those that do.
+fn unknown_case(name: &str) -> BenchError {
+    BenchError::Scene(format!(
+        "unknown hard case {name:?}; expected one of: {}",
+        HARD_CASES
+            .iter()
+            .chain(HARD_SCENES)
+            .copied()
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
 }
