@@ -356,3 +356,15 @@ fn bunny_drop_under_newton_lands_without_penetration_or_inverted_tetrahedra() {
     assert_eq!(sim.scene().inverted_tetrahedra(&sim.state().positions), 0);
     assert!(sim.scene().mesh().tetrahedra().len() > 1000);
 }
+
+#[test]
+fn the_buckling_relaxation_is_refused_on_a_scene_with_contact() {
+    let (scene, state) = drop(4, 0.1, Vector3::zeros(), vec![ground(0.0, 0.0)]);
+    let mut s = settings(Integrator::Newton);
+    s.newton.relaxation = hooke::solvers::Relaxation::BUCKLING;
+    let err = Simulation::new(scene, state, s).unwrap_err();
+    assert!(
+        matches!(err, SimError::Unsupported { .. }) && err.to_string().contains("relaxation"),
+        "{err}"
+    );
+}

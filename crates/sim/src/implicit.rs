@@ -384,6 +384,15 @@ impl<const D: usize> BackwardEuler<D> {
         parallel: bool,
     ) -> Result<Self, SimError> {
         check_supported(scene, "newton")?;
+        if let Minimizer::Newton(params) = minimizer {
+            if !params.relaxation.is_none() && !scene.contacts().is_empty() {
+                return Err(SimError::Unsupported {
+                    integrator: "newton".to_string(),
+                    what: "the buckling relaxation on a scene with contact (its per-vertex sweeps                            and patch solves do not see the obstacles): use relaxation none"
+                        .to_string(),
+                });
+            }
+        }
         let mesh = scene.mesh();
         let n = mesh.vertex_count();
         let free = FreeDofs::new(n, scene.pinned())

@@ -236,11 +236,19 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         Some(self.assemble(xf, Definiteness::Clamped))
     }
 
+    /// Nothing with contact ([`BackwardEulerStep::set_contact`]): the relaxation's per-vertex
+    /// sweeps and patch solves do not see the obstacles.
     fn prepare_relaxation(&mut self, relaxation: Relaxation) {
-        self.prepare_patches(relaxation)
+        if self.contact.is_none() {
+            self.prepare_patches(relaxation)
+        }
     }
 
+    /// `None` (nothing done) with contact: see [`NewtonProblem::prepare_relaxation`].
     fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
+        if self.contact.is_some() {
+            return None;
+        }
         self.relax_all(xf, relaxation)
     }
 }
