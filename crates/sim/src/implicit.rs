@@ -388,7 +388,8 @@ impl<const D: usize> BackwardEuler<D> {
             if !params.relaxation.is_none() && !scene.contacts().is_empty() {
                 return Err(SimError::Unsupported {
                     integrator: "newton".to_string(),
-                    what: "the buckling relaxation on a scene with contact (its per-vertex sweeps                            and patch solves do not see the obstacles): use relaxation none"
+                    what: "the buckling relaxation on a scene with contact (its per-vertex sweeps \
+                           and patch solves do not see the obstacles): use relaxation none"
                         .to_string(),
                 });
             }
