@@ -118,10 +118,8 @@ fn unknown_names_and_tiny_cloths_are_errors() {
 /// The scene cases run with the implicit integrators only (an explicit one gives no cell); each run
 /// reports frames converged, energy changes and the deepest penetration, and the table shows them.
 /// A subset, so that the test stays short: one frame each (`scene_frames`; bunny-drop's own count
-/// is 10) with linearised CG, projective dynamics and an explicit method that must be left out.
-/// Not run here: the Newton methods, which spent more than 90 s on bunny-drop's first two frames
-/// while contact inside the implicit solvers is being rebuilt (`hooke bench --hard-cases` runs
-/// them all).
+/// is 10) with linearised CG, Newton, projective dynamics and an explicit method that must be left
+/// out (`hooke bench --hard-cases` runs them all).
 #[test]
 fn scene_cases_run_the_implicit_integrators_and_report_their_measures() {
     let options = HardCaseOptions {
@@ -130,7 +128,7 @@ fn scene_cases_run_the_implicit_integrators_and_report_their_measures() {
         max_substeps: 100,
         scene_frames: Some(1),
     };
-    let integrators = ["symplectic-euler", "linearized-cg", "pd"];
+    let integrators = ["symplectic-euler", "linearized-cg", "newton", "pd"];
     let results = hard_cases(HARD_SCENES, &integrators, options, &mut |_| {}).unwrap();
     let implicit = &integrators[1..];
     assert_eq!(results.len(), HARD_SCENES.len() * implicit.len());
