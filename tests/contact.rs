@@ -368,3 +368,30 @@ fn the_buckling_relaxation_is_refused_on_a_scene_with_contact() {
         "{err}"
     );
 }
+
+#[test]
+fn projective_dynamics_never_ends_a_frame_inside_an_obstacle() {
+    // pd and pd-chebyshev project the mesh after their step (docs/contact.md): no vertex ends a
+    // frame inside, exactly (signed distance ≥ 0; a projected vertex may lie on the surface).
+    for integrator in [Integrator::ProjectiveDynamics, Integrator::ChebyshevPd] {
+        for (what, contacts) in [
+            ("ground", vec![ground(0.0, 0.3)]),
+            (
+                "sphere and ground",
+                vec![sphere(Vector3::zeros(), 0.2, 0.1), ground(-0.3, 0.0)],
+            ),
+        ] {
+            let (scene, state) = drop(10, 0.3, Vector3::new(0.0, -3.0, 0.0), contacts);
+            let mut sim = Simulation::new(scene, state, settings(integrator)).unwrap();
+            for frame in 1..=30 {
+                sim.step()
+                    .unwrap_or_else(|e| panic!("{integrator}, {what}, frame {frame}: {e}"));
+                let deepest = sim.smallest_contact_distance();
+                assert!(
+                    deepest >= 0.0,
+                    "{integrator}, {what}, frame {frame}: a vertex is {deepest:e} m inside"
+                );
+            }
+        }
+    }
+}
