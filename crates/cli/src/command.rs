@@ -78,7 +78,7 @@ pub(crate) struct RunArgs {
     iterations: Option<usize>,
     /// Tolerance: the linear solver's relative residual (linearized, > 0, default 1e-8); for
     /// newton, newton-cg and lbfgs the step size in m/s, the largest vertex displacement of a
-    /// Newton step divided by h (≥ 0, default 1e-4); for pd and pd-chebyshev the largest position
+    /// Newton step divided by h (≥ 0, default 1e-5); for pd and pd-chebyshev the largest position
     /// change of an iteration divided by h, in m/s (≥ 0, default 0: run all iterations).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     tolerance: Option<f64>,

@@ -21,7 +21,7 @@
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
 //! positive definite), the step −H⁻¹∇Φ shortened by halving (up to 40 times) until Φ falls by at
 //! least 1e-4 of what the linear model predicts (Armijo), until a step's size is at most
-//! [`DEFAULT_STEP_TOLERANCE`] ([`Convergence::StepSize`]; for backward Euler 1e-4 m/s). Nothing
+//! [`DEFAULT_STEP_TOLERANCE`] ([`Convergence::StepSize`]; for backward Euler 1e-5 m/s). Nothing
 //! else: these defaults were chosen on a table of scenes (cloth-10 to cloth-160, beam-4, beam-8
 //! and the eight hard cases; `benches/results/issue15-newton-default.md`), on
 //! which this plain Newton is as fast as or faster than every variant tried except on the crushed
@@ -488,12 +488,14 @@ pub struct NewtonParams {
     pub cholesky: CholeskyParams,
 }
 
-/// The default tolerance of [`Convergence::StepSize`]: 1e-4 in the problem's step measure, for
-/// backward Euler m/s (a Newton step that moves no vertex by more than 1e-4 m/s · h; the step is
-/// then taken, so what is left is far smaller). Chosen on cloth-40, cloth-40-stiff and bunny-drop
-/// runs: their energies after 1 s agree with 1e-5 m/s runs to 3e-10 of their size, with 5-35 %
-/// fewer iterations; 1e-3 m/s moved cloth-40's by 6e-6 (docs/contact.md).
-pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-4;
+/// The default tolerance of [`Convergence::StepSize`]: 1e-5 in the problem's step measure, for
+/// backward Euler m/s (a Newton step that moves no vertex by more than 1e-5 m/s · h; the step is
+/// then taken, so what is left is smaller still). Chosen on runs of cloth-40, cloth-40-stiff,
+/// cloth-80, beam-4 and bunny-drop (docs/contact.md): at 1e-5 m/s cloth-80's energy after 1 s agrees
+/// with a 1e-6 m/s run to 3e-11 of its size, where 3e-5 and 1e-4 m/s move it by 3e-5 and 4.5e-5
+/// (its buckling amplifies what a looser solve leaves); the others agree to 3e-10 at 1e-4 m/s,
+/// which saves 5-8 % of their iterations and a quarter of bunny-drop's time.
+pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-5;
 
 /// When a Newton solve has converged (see the module documentation's "Stops").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
