@@ -490,11 +490,9 @@ pub struct NewtonParams {
 
 /// The default tolerance of [`Convergence::StepSize`]: 1e-5 in the problem's step measure, for
 /// backward Euler m/s (a Newton step that moves no vertex by more than 1e-5 m/s · h; the step is
-/// then taken, so what is left is smaller still). Chosen on runs of cloth-40, cloth-40-stiff,
-/// cloth-80, beam-4 and bunny-drop (docs/contact.md): at 1e-5 m/s cloth-80's energy after 1 s agrees
-/// with a 1e-6 m/s run to 3e-11 of its size, where 3e-5 and 1e-4 m/s move it by 3e-5 and 4.5e-5
-/// (its buckling amplifies what a looser solve leaves); the others agree to 3e-10 at 1e-4 m/s,
-/// which saves 5-8 % of their iterations and a quarter of bunny-drop's time.
+/// then taken, so what is left is smaller still). The loosest value measured that leaves every
+/// scene of the table (cloth-40, cloth-40-stiff, cloth-80, beam-4, bunny-drop) at the answer of a
+/// tighter solve; a buckling cloth amplifies what a looser one leaves (docs/contact.md).
 pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-5;
 
 /// When a Newton solve has converged (see the module documentation's "Stops").
