@@ -555,9 +555,11 @@ impl<const D: usize> BackwardEuler<D> {
         let free = FreeDofs::new(n, scene.pinned())
             .map_err(|e| SimError::invalid("pins", "", e.to_string()))?;
         let inertia = effective_masses(scene);
-        let pd =
+        let mut pd =
             ProjectiveDynamics::new(mesh.springs(), &inertia, &free, scene.time_step(), params)
                 .map_err(SimError::solver)?;
+        pd.set_contact(mesh.springs(), scene.pd_contact_model())
+            .map_err(SimError::solver)?;
         let pd = Box::new(pd);
         let solver = match chebyshev {
             None => Solver::Projective { pd },
@@ -880,7 +882,10 @@ impl<const D: usize> BackwardEuler<D> {
                 for v in 0..positions.len() {
                     self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
-                positions.copy_from_slice(&self.y);
+                // Without contact x⁰ = y; with contact PD starts from x_n (its own initial guess).
+                if !pd.has_contact() {
+                    positions.copy_from_slice(&self.y);
+                }
                 let springs = scene.mesh().springs();
                 if let Some(iterations) = estimate.take() {
                     let given = rate.rate();
@@ -892,7 +897,9 @@ impl<const D: usize> BackwardEuler<D> {
                         .set_rate(rate.rate())
                         .map_err(SimError::SolverParameter)?;
                 }
-                let report = chebyshev.solve(pd, springs, &self.y, positions);
+                let report = chebyshev
+                    .solve(pd, springs, &self.y, positions)
+                    .map_err(SimError::solver)?;
                 SolveSummary {
                     iterations: report.iterations,
                     residual: report.changes.last().copied().unwrap_or(0.0) / h,
@@ -905,7 +912,10 @@ impl<const D: usize> BackwardEuler<D> {
                     self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
                 // x⁰ = y at free vertices; pinned vertices keep their positions (y = x there).
-                positions.copy_from_slice(&self.y);
+                // With contact PD starts from x_n (its own initial guess).
+                if !pd.has_contact() {
+                    positions.copy_from_slice(&self.y);
+                }
                 let report = pd
                     .solve(scene.mesh().springs(), &self.y, positions)
                     .map_err(SimError::solver)?;

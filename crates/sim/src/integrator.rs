@@ -115,6 +115,19 @@ impl Integrator {
         )
     }
 
+    /// True for the integrators that handle contact inside their solve: the barrier ones
+    /// ([`Integrator::uses_contact_barrier`]) and projective dynamics with Chebyshev's
+    /// acceleration or without (contact targets in the global step, every iterate kept outside
+    /// the obstacles: docs/contact.md). The explicit and linearised integrators project vertices
+    /// after their steps or substeps.
+    pub fn contact_in_solve(&self) -> bool {
+        self.uses_contact_barrier()
+            || matches!(
+                self,
+                Integrator::ProjectiveDynamics | Integrator::ChebyshevPd
+            )
+    }
+
     /// True for the explicit methods, which have a step-size limit and take substeps.
     pub fn is_explicit(&self) -> bool {
         matches!(

@@ -8,6 +8,7 @@ use crate::damping::Damping;
 use crate::error::{positive, SimError};
 use crate::forces::{ExternalForce, ExternalForces};
 use hooke_solvers::backward_euler::ContactModel;
+use hooke_solvers::PdContactModel;
 
 /// Which vertices are pinned (held at their initial positions).
 #[derive(Clone, Debug, PartialEq)]
@@ -333,6 +334,18 @@ impl<const D: usize> Scene<D> {
             stiffness,
             friction_velocity: self.barrier.friction_velocity,
         })
+    }
+
+    /// The contact model of projective dynamics (with or without Chebyshev's acceleration): the
+    /// obstacles (a box as its walls) with their friction, and d̂ ([`BarrierSettings::resolve`])
+    /// as the reach within which a vertex's way makes it take part in a step's contact solve;
+    /// `None` for a scene without contact.
+    pub fn pd_contact_model(&self) -> Option<PdContactModel<D>> {
+        if self.contacts.is_empty() {
+            return None;
+        }
+        let (distance, _) = self.barrier.resolve(self.mesh.positions());
+        Some(PdContactModel::new(obstacles(&self.contacts), distance))
     }
 
     /// The barrier energy Σ κ̂ m_v b(d) (J) of the free vertices at `positions` under

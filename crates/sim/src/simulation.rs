@@ -180,12 +180,12 @@ impl<const D: usize> Simulation<D> {
             _ => None,
         };
         let barrier = settings.integrator.uses_contact_barrier() && !scene.contacts().is_empty();
-        if barrier {
+        if settings.integrator.contact_in_solve() && !scene.contacts().is_empty() {
             check_outside_obstacles(&scene, &state.positions)?;
         }
         let projection = if !scene.contacts().is_empty()
             && !settings.integrator.is_explicit()
-            && !settings.integrator.uses_contact_barrier()
+            && !settings.integrator.contact_in_solve()
         {
             Some(StepProjection::new(&scene)?)
         } else {

@@ -23,7 +23,7 @@ use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 use crate::params::{self, ParamError};
-use crate::projective::ProjectiveDynamics;
+use crate::projective::{PdError, ProjectiveDynamics};
 use crate::report::StopReason;
 
 /// Settings of [`ChebyshevPd`].
@@ -162,7 +162,12 @@ impl<const D: usize> ChebyshevPd<D> {
     }
 
     /// Solve the step with inertial target `y` as [`ProjectiveDynamics::solve`] does (`x` the
-    /// initial guess with the pinned vertices in place, and the result), accelerated.
+    /// initial guess with the pinned vertices in place, or the step's start with contact, and the
+    /// result), accelerated. With contact, the extrapolated point is limited as PD's iterates are,
+    /// so that every iterate is outside every obstacle.
+    ///
+    /// # Errors
+    /// [`PdError::Factorization`] if the contact solve's matrix does not factor.
     ///
     /// # Panics
     /// If the lengths of `springs`, `y` or `x` do not match `pd`'s system or this solver's size.
@@ -173,7 +178,7 @@ impl<const D: usize> ChebyshevPd<D> {
         springs: &[Spring],
         y: &[SVector<f64, D>],
         x: &mut [SVector<f64, D>],
-    ) -> ChebyshevReport {
+    ) -> Result<ChebyshevReport, PdError> {
         assert_eq!(x.len(), self.current.len(), "one position per vertex");
         let start = Instant::now();
         let p = self.params;
@@ -186,6 +191,7 @@ impl<const D: usize> ChebyshevPd<D> {
             stop: StopReason::IterationLimit,
             wall_time: Duration::ZERO,
         };
+        pd.begin_step(springs, y, x)?;
         let mut phi = pd.objective(springs, y, x);
         report.objectives.push(phi);
         self.previous.copy_from_slice(x);
@@ -210,6 +216,7 @@ impl<const D: usize> ChebyshevPd<D> {
                     let (q, q_old) = (self.current[v], self.previous[v]);
                     x[v] = omega * (gamma * (self.plain[v] - q) + q - q_old) + q_old;
                 }
+                pd.limit_moves(&self.current, x);
             }
             // Φ(x) − Φ(qₖ), exact to rounding (no cancellation of two values of Φ); NaN counts as
             // a rise.
@@ -257,7 +264,7 @@ impl<const D: usize> ChebyshevPd<D> {
             }
         }
         report.wall_time = start.elapsed();
-        report
+        Ok(report)
     }
 }
 
@@ -275,6 +282,8 @@ impl<const D: usize> ProjectiveDynamics<D> {
         iterations: usize,
     ) -> Option<f64> {
         let iterations = iterations.max(4);
+        // Plain iterations without contact: the estimate is of the spring system's rate.
+        let contact = self.take_contact();
         let mut work = x.to_vec();
         let mut largest_displacement = 0.0;
         // Only the change halfway and the last one are needed: nothing is sized by `iterations`.
@@ -285,6 +294,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
                 a = b;
             }
         }
+        self.restore_contact(contact);
         let span = (iterations - 1 - iterations / 2) as f64;
         let rate = (b / a).powf(1.0 / span);
         (a > 0.0 && b > 0.0 && rate > 0.0 && rate < 1.0).then_some(rate)

@@ -301,6 +301,11 @@ impl SparseCholesky {
         })
     }
 
+    /// The settings it was made with.
+    pub fn params(&self) -> &CholeskyParams {
+        &self.params
+    }
+
     /// The shared symbolic analysis.
     pub fn symbolic(&self) -> &Arc<SymbolicCholesky<usize>> {
         &self.symbolic

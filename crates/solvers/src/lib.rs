@@ -73,5 +73,7 @@ pub use newton_cg::{
 };
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use params::{ParamError, MAX_THREADS};
-pub use projective::{PdError, PdParams, PdReport, ProjectiveDynamics};
+pub use projective::{
+    PdContactModel, PdError, PdParams, PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT,
+};
 pub use report::{Report, SolveError, SolveSummary, StopReason};

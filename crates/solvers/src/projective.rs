@@ -16,12 +16,17 @@ use hooke_assembly::{spring_energy, FreeDofs};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
+mod contact;
+
+pub use contact::{PdContactModel, DEFAULT_CONTACT_WEIGHT};
+
 use crate::backward_euler::spring_energy_change;
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 use crate::forest_solve::{self, ForestSolve};
 use crate::operator::Preconditioner;
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
+use contact::PdContact;
 
 /// Why projective dynamics could not be set up or run.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -120,17 +125,99 @@ pub struct ProjectiveDynamics<const D: usize> {
     /// The settings.
     pub params: PdParams,
     pattern: LaplacianPattern,
-    cholesky: SparseCholesky,
+    global: GlobalSolve<D>,
     values: Vec<f64>,
     masses: Vec<f64>,
     h: f64,
     d: Vec<SVector<f64, D>>,
     rhs: Vec<SVector<f64, D>>,
+    /// Contact with obstacles, if set ([`ProjectiveDynamics::set_contact`]).
+    contact: Option<Box<PdContact<D>>>,
+}
+
+/// The prefactored global matrix and the buffers of its D-column solve.
+#[derive(Debug)]
+pub(crate) struct GlobalSolve<const D: usize> {
+    cholesky: SparseCholesky,
+    /// Column-major right-hand sides for the supernodal solve.
     columns: Vec<f64>,
     /// The factor laid out for the split solve of the D coordinates (simplicial factors), and
     /// the right-hand sides in its order.
     forest: Option<ForestSolve<D>>,
     ordered: Vec<SVector<f64, D>>,
+}
+
+impl<const D: usize> GlobalSolve<D> {
+    pub(crate) fn new(cholesky: SparseCholesky) -> Self {
+        let n = cholesky.dim();
+        GlobalSolve {
+            cholesky,
+            columns: vec![0.0; D * n],
+            forest: None,
+            ordered: Vec::new(),
+        }
+    }
+
+    /// Factor `matrix` (the pattern of the analysis). After a failure no stale factor is used.
+    pub(crate) fn factor(
+        &mut self,
+        matrix: faer::sparse::SparseColMatRef<'_, usize, f64>,
+    ) -> Result<(), CholeskyError> {
+        // The layout is kept across factorisations (the pattern does not change), but only a
+        // successful one refills it.
+        let layout = self.forest.take();
+        self.cholesky.factorize(matrix)?;
+        self.forest = match (layout, self.cholesky.llt_values()) {
+            (Some(mut forest), Some(values)) => {
+                forest.refill(values);
+                Some(forest)
+            }
+            _ => self.cholesky.forest_solve(),
+        };
+        let rows = self.forest.as_ref().map_or(0, ForestSolve::dim);
+        self.ordered.resize(rows, SVector::zeros());
+        Ok(())
+    }
+
+    /// Solve for the D columns of `rhs` (one D-vector per free vertex) and hand each solution to
+    /// `out(free index, solution)`, on two threads if `threads` (same bits either way).
+    pub(crate) fn solve(
+        &mut self,
+        rhs: &[SVector<f64, D>],
+        threads: bool,
+        mut out: impl FnMut(usize, SVector<f64, D>),
+    ) {
+        let n = rhs.len();
+        if let Some(forest) = &mut self.forest {
+            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
+                *o = rhs[f as usize];
+            }
+            forest.solve_ordered(&mut self.ordered, threads);
+            for (new, &f) in self.ordered.iter().zip(forest.order()) {
+                out(f as usize, *new);
+            }
+        } else {
+            for (f, r) in rhs.iter().enumerate() {
+                for a in 0..D {
+                    self.columns[a * n + f] = r[a];
+                }
+            }
+            self.cholesky
+                .solve_in_place(MatMut::from_column_major_slice_mut(&mut self.columns, n, D));
+            for f in 0..n {
+                out(
+                    f,
+                    SVector::<f64, D>::from_fn(|a, _| self.columns[a * n + f]),
+                );
+            }
+        }
+    }
+
+    /// Whether the split solve pays for a fork: a factor of at least
+    /// [`forest_solve::SPLIT_MIN_VALUES`] stored values.
+    fn is_large(&self) -> bool {
+        self.cholesky.factor_nnz() >= forest_solve::SPLIT_MIN_VALUES
+    }
 }
 
 impl<const D: usize> ProjectiveDynamics<D> {
@@ -169,7 +256,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
             params,
             values: pattern.new_values(),
             pattern,
-            cholesky,
+            global: GlobalSolve::new(cholesky),
             masses: masses.to_vec(),
             h,
             d: springs
@@ -181,9 +268,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
                 })
                 .collect(),
             rhs: vec![SVector::zeros(); n_free],
-            columns: vec![0.0; D * n_free],
-            forest: None,
-            ordered: Vec::new(),
+            contact: None,
         };
         pd.refactor(springs, masses, h)?;
         Ok(pd)
@@ -218,38 +303,27 @@ impl<const D: usize> ProjectiveDynamics<D> {
         self.h = h;
         self.pattern
             .system_into(springs, masses, h, &mut self.values);
-        // The layout is kept across factorisations (the pattern does not change), but only a
-        // successful one refills it: after a failure no stale factor is used.
-        let layout = self.forest.take();
-        self.cholesky.factorize(self.pattern.matrix(&self.values))?;
-        self.forest = match (layout, self.cholesky.llt_values()) {
-            (Some(mut forest), Some(values)) => {
-                forest.refill(values);
-                Some(forest)
-            }
-            _ => self.cholesky.forest_solve(),
-        };
-        let rows = self.forest.as_ref().map_or(0, ForestSolve::dim);
-        self.ordered.resize(rows, SVector::zeros());
+        self.global.factor(self.pattern.matrix(&self.values))?;
+        if let Some(contact) = &mut self.contact {
+            contact.rebuild(&self.pattern, springs, masses, h);
+        }
         Ok(())
     }
 
     /// Whether the split solve runs its two bins on two threads: in parallel mode, for factors
     /// large enough to pay for the fork ([`forest_solve::SPLIT_MIN_VALUES`]).
     fn split_threads(&self) -> bool {
-        self.params.parallel
-            && self.params.cholesky.solve_threads > 1
-            && self.cholesky.factor_nnz() >= forest_solve::SPLIT_MIN_VALUES
+        self.params.parallel && self.params.cholesky.solve_threads > 1 && self.global.is_large()
     }
 
     /// Time of the last numeric factorisation (amortised over every step until the next refactor).
     pub fn factor_time(&self) -> Duration {
-        self.cholesky.factor_time()
+        self.global.cholesky.factor_time()
     }
 
     /// Stored values of the Cholesky factor.
     pub fn factor_nnz(&self) -> usize {
-        self.cholesky.factor_nnz()
+        self.global.cholesky.factor_nnz()
     }
 
     /// Φ(x) = ½ Σ m_v |x_v − y_v|² + h² E(x) over all vertices, in kg·m² (J·s²). Pinned vertices add a
@@ -342,6 +416,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
             stop: StopReason::IterationLimit,
             wall_time: Duration::ZERO,
         };
+        self.begin_step(springs, y, x)?;
         if p.record_objective {
             report.objectives.push(self.objective(springs, y, x));
         }
@@ -376,46 +451,116 @@ impl<const D: usize> ProjectiveDynamics<D> {
         x: &mut [SVector<f64, D>],
         largest_displacement: &mut f64,
     ) -> f64 {
-        let n_free = self.pattern.free_dofs().free_count();
         local_step(springs, x, &mut self.d, self.params.parallel);
         self.pattern
             .rhs_into(springs, &self.d, y, x, &self.masses, self.h, &mut self.rhs);
         let threads = self.split_threads();
         let free_vertices = self.pattern.free_dofs().free_vertices();
         let mut change: f64 = 0.0;
-        let mut update = |vertex: usize, new: SVector<f64, D>| {
+        let mut update = |x: &mut [SVector<f64, D>], vertex: usize, new: SVector<f64, D>| {
             change = change.max((new - x[vertex]).amax());
             x[vertex] = new;
             *largest_displacement = largest_displacement.max((new - y[vertex]).amax());
         };
-        if let Some(forest) = &mut self.forest {
-            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
-                *o = self.rhs[f as usize];
-            }
-            forest.solve_ordered(&mut self.ordered, threads);
-            for (new, &f) in self.ordered.iter().zip(forest.order()) {
-                update(free_vertices[f as usize] as usize, *new);
-            }
-        } else {
-            for (f, r) in self.rhs.iter().enumerate() {
-                for a in 0..D {
-                    self.columns[a * n_free + f] = r[a];
+        match &mut self.contact {
+            Some(contact) => {
+                contact.global_step(&mut self.global, &self.rhs, free_vertices, x, threads);
+                for (f, &vertex) in free_vertices.iter().enumerate() {
+                    let vertex = vertex as usize;
+                    let new = contact.feasible_move(&x[vertex], &contact.solution()[f]);
+                    update(x, vertex, new);
                 }
             }
-            self.cholesky
-                .solve_in_place(MatMut::from_column_major_slice_mut(
-                    &mut self.columns,
-                    n_free,
-                    D,
-                ));
-            for (f, &vertex) in free_vertices.iter().enumerate() {
-                update(
-                    vertex as usize,
-                    SVector::<f64, D>::from_fn(|a, _| self.columns[a * n_free + f]),
-                );
-            }
+            None => self.global.solve(&self.rhs, threads, |f, new| {
+                update(x, free_vertices[f] as usize, new);
+            }),
         }
         change
+    }
+
+    /// With contact, begin a step: `x` holds the step's start (outside every obstacle) and
+    /// receives the initial guess (see [`ProjectiveDynamics::set_contact`]); the active set is
+    /// chosen and the weighted matrix refactored if it changed. Without contact, nothing.
+    pub(crate) fn begin_step(
+        &mut self,
+        springs: &[Spring],
+        y: &[SVector<f64, D>],
+        x: &mut [SVector<f64, D>],
+    ) -> Result<(), PdError> {
+        if let Some(contact) = &mut self.contact {
+            contact.begin_step(&self.pattern, springs, y, x)?;
+        }
+        Ok(())
+    }
+
+    /// With contact, limit each free vertex's move from `from` to `x` so that it stays outside
+    /// every obstacle (see [`ProjectiveDynamics::set_contact`]). Without contact, nothing.
+    pub(crate) fn limit_moves(&self, from: &[SVector<f64, D>], x: &mut [SVector<f64, D>]) {
+        if let Some(contact) = &self.contact {
+            contact.limit_moves(self.pattern.free_dofs().free_vertices(), from, x);
+        }
+    }
+
+    /// Set contact with static obstacles (`Some`), or remove it (`None`). With contact, the `x`
+    /// given to [`ProjectiveDynamics::solve`] (and [`crate::ChebyshevPd::solve`]) is the step's
+    /// start x_n, which must be outside every obstacle, not an initial guess: the solve starts
+    /// from y where a vertex's way there is clear, and short of the first obstacle otherwise.
+    /// Every iterate, and the result, is outside every obstacle (signed distance ≥ 0 as
+    /// [`Obstacle::distance`](hooke_assembly::contact::Obstacle::distance) computes it); see
+    /// [`PdContactModel`] and docs/contact.md for the contact solve and its friction. `springs`
+    /// are the system's.
+    ///
+    /// # Errors
+    /// [`PdError::InvalidParameter`] if the model does not pass [`PdContactModel::validate`];
+    /// [`PdError::Factorization`] if the scratch memory of a second factor cannot be had.
+    pub fn set_contact(
+        &mut self,
+        springs: &[Spring],
+        model: Option<PdContactModel<D>>,
+    ) -> Result<(), PdError> {
+        let Some(model) = model else {
+            self.contact = None;
+            return Ok(());
+        };
+        model.validate()?;
+        let cholesky = SparseCholesky::with_symbolic(
+            self.global.cholesky.symbolic().clone(),
+            self.pattern.symbolic(),
+            *self.global.cholesky.params(),
+            self.global.cholesky.analysis_time(),
+        )?;
+        self.contact = Some(Box::new(PdContact::new(
+            model,
+            cholesky,
+            &self.pattern,
+            springs,
+            &self.masses,
+            self.h,
+        )));
+        Ok(())
+    }
+
+    pub(crate) fn take_contact(&mut self) -> Option<Box<PdContact<D>>> {
+        self.contact.take()
+    }
+
+    pub(crate) fn restore_contact(&mut self, contact: Option<Box<PdContact<D>>>) {
+        self.contact = contact;
+    }
+
+    /// Whether contact is set ([`ProjectiveDynamics::set_contact`]).
+    pub fn has_contact(&self) -> bool {
+        self.contact.is_some()
+    }
+
+    /// Free vertices active in the last step's contact solve (0 without contact).
+    pub fn contact_vertices(&self) -> usize {
+        self.contact.as_ref().map_or(0, |c| c.active_count())
+    }
+
+    /// Factorisations of the contact solve's weighted matrix so far (one per new active set).
+    pub fn contact_factorizations(&self) -> usize {
+        self.contact.as_ref().map_or(0, |c| c.factorizations)
     }
 
     /// The free vertices, in the order of the reduced unknowns.
@@ -435,33 +580,11 @@ impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
         assert_eq!(r.len(), D * n_free, "one value per free DOF");
         assert_eq!(z.len(), D * n_free, "one value per free DOF");
         let threads = self.split_threads();
-        if let Some(forest) = &mut self.forest {
-            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
-                let f = f as usize;
-                *o = SVector::from_column_slice(&r[D * f..D * f + D]);
-            }
-            forest.solve_ordered(&mut self.ordered, threads);
-            for (o, &f) in self.ordered.iter().zip(forest.order()) {
-                let f = f as usize;
-                z[D * f..D * f + D].copy_from_slice(o.as_slice());
-            }
-            return;
+        for (f, r) in self.rhs.iter_mut().zip(r.chunks_exact(D)) {
+            *f = SVector::from_column_slice(r);
         }
-        for f in 0..n_free {
-            for a in 0..D {
-                self.columns[a * n_free + f] = r[D * f + a];
-            }
-        }
-        self.cholesky
-            .solve_in_place(MatMut::from_column_major_slice_mut(
-                &mut self.columns,
-                n_free,
-                D,
-            ));
-        for f in 0..n_free {
-            for a in 0..D {
-                z[D * f + a] = self.columns[a * n_free + f];
-            }
-        }
+        self.global.solve(&self.rhs, threads, |f, o| {
+            z[D * f..D * f + D].copy_from_slice(o.as_slice());
+        });
     }
 }

@@ -84,7 +84,9 @@ impl Step {
     fn solve(&mut self, params: ChebyshevParams) -> (Vec<V>, hooke_solvers::ChebyshevReport) {
         let mut x = self.y.clone();
         let mut solver = ChebyshevPd::<3>::new(self.mesh.vertex_count(), params).unwrap();
-        let report = solver.solve(&mut self.pd, self.mesh.springs(), &self.y, &mut x);
+        let report = solver
+            .solve(&mut self.pd, self.mesh.springs(), &self.y, &mut x)
+            .unwrap();
         (x, report)
     }
 }

@@ -420,7 +420,10 @@ proptest! {
                         return Ok(());
                     }
                     let mut x = y.clone();
-                    let r = built.unwrap().solve(&mut pd, mesh.springs(), &y, &mut x);
+                    let r = built
+                        .unwrap()
+                        .solve(&mut pd, mesh.springs(), &y, &mut x)
+                        .unwrap();
                     prop_assert!(r.iterations <= cheb.max_iterations.min(BOUND));
                     prop_assert!(x.iter().all(|p| p.iter().all(|c| c.is_finite())));
                 }

@@ -515,7 +515,9 @@ impl Runner {
                 let mut solver =
                     ChebyshevPd::<3>::new(x.len(), params).map_err(|e| e.to_string())?;
                 x.copy_from_slice(&problem.y);
-                let report = solver.solve(pd, springs, &problem.y, x);
+                let report = solver
+                    .solve(pd, springs, &problem.y, x)
+                    .map_err(|e| e.to_string())?;
                 let mut note = format!("ρ = {rate:.4}");
                 if report.restarts > 0 {
                     note += &format!(", {} restart(s)", report.restarts);
