@@ -524,4 +524,3 @@ fn projective_dynamics_never_ends_a_frame_inside_an_obstacle() {
         }
     }
 }
-

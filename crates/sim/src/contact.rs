@@ -2,8 +2,9 @@
 //! side and the velocity component into the obstacle is removed. Pinned vertices are never touched.
 //!
 //! The explicit integrators project each vertex on its own ([`Contact::project`]) after every
-//! substep, whose penetrations are tiny. After an implicit step of a whole frame (linearised, Newton,
-//! projective dynamics) that is not enough: the solve knows nothing of the obstacles, and at
+//! substep, whose penetrations are tiny. (Newton, Newton-CG, L-BFGS and projective dynamics handle
+//! contact inside their solves instead: docs/contact.md.) After an implicit step of a whole frame
+//! (the linearised integrator) that is not enough: the solve knows nothing of the obstacles, and at
 //! h = 1/30 s it moves vertices far into them. Projecting each such vertex on its own moves it by the
 //! penetration depth d while its neighbours stay, which stores about ½ k d² in every spring to it:
 //! cloth-12 (k = 1e3 N/m, 1 kg) falling on a sphere of radius 0.15 m under Newton went 0.058 m and
@@ -30,8 +31,8 @@
 //!
 //! Measured on the same scene (`cargo run -p hooke-sim --example contact_probe -- newton`): the
 //! energy now rises at most 1.57 J above E₀ (frame 8; spring energy 2.9 J), the cloth drapes over
-//! the sphere and slides off, and it ends 3.2 J below E₀ after 45 frames; projective dynamics and
-//! the linearised integrator never rise above E₀. What is left is the error of the one Newton step
+//! the sphere and slides off, and it ends 3.2 J below E₀ after 45 frames; the linearised integrator
+//! never rises above E₀. What is left is the error of the one Newton step
 //! (the springs near the sphere turn by large angles in a frame): the projection does not make
 //! contact part of the solve, and does not promise energy decrease.
 
