@@ -286,36 +286,7 @@ impl<const D: usize> PdContact<D> {
         from: &SVector<f64, D>,
         to: &SVector<f64, D>,
     ) -> SVector<f64, D> {
-        let step = to - from;
-        let mut first = f64::INFINITY;
-        for (o, _) in &self.model.obstacles {
-            let t = if o.distance(from) > 0.0 {
-                o.time_of_impact(from, &step).unwrap_or(f64::INFINITY)
-            } else if o.normal(from).dot(&step) >= 0.0 {
-                // On the surface and leaving it (or moving along it): a plane's or a sphere's
-                // outside is not entered by such a move.
-                f64::INFINITY
-            } else {
-                0.0
-            };
-            // NaN (non-finite input) stops the vertex.
-            first = if t.is_nan() { 0.0 } else { first.min(t) };
-        }
-        let new = if first > 1.0 {
-            *to
-        } else {
-            from + step * (TIME_OF_IMPACT_SHARE * first)
-        };
-        if self
-            .model
-            .obstacles
-            .iter()
-            .all(|(o, _)| o.distance(&new) >= 0.0)
-        {
-            new
-        } else {
-            *from
-        }
+        feasible_move(&self.model.obstacles, from, to)
     }
 
     /// Clamp every free vertex's move from `from` to `x` as [`PdContact::feasible_move`] does.
@@ -329,6 +300,41 @@ impl<const D: usize> PdContact<D> {
             let v = v as usize;
             x[v] = self.feasible_move(&from[v], &x[v]);
         }
+    }
+}
+
+/// Where a vertex at `from` (outside every obstacle of `obstacles`) may go on its way to `to`:
+/// `to` if the way is clear, else [`TIME_OF_IMPACT_SHARE`] of the way to the first obstacle;
+/// `from` itself if the computed point would be inside one (rounding), so the result is always
+/// outside. A vertex on a surface may leave it or move along it (a plane's or a sphere's outside is
+/// not entered by a move whose direction has no inward normal part), not move in.
+fn feasible_move<const D: usize>(
+    obstacles: &[(Obstacle<D>, f64)],
+    from: &SVector<f64, D>,
+    to: &SVector<f64, D>,
+) -> SVector<f64, D> {
+    let step = to - from;
+    let mut first = f64::INFINITY;
+    for (o, _) in obstacles {
+        let t = if o.distance(from) > 0.0 {
+            o.time_of_impact(from, &step).unwrap_or(f64::INFINITY)
+        } else if o.normal(from).dot(&step) >= 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        };
+        // NaN (non-finite input) stops the vertex.
+        first = if t.is_nan() { 0.0 } else { first.min(t) };
+    }
+    let new = if first > 1.0 {
+        *to
+    } else {
+        from + step * (TIME_OF_IMPACT_SHARE * first)
+    };
+    if obstacles.iter().all(|(o, _)| o.distance(&new) >= 0.0) {
+        new
+    } else {
+        *from
     }
 }
 
@@ -424,4 +430,86 @@ fn contact_target<const D: usize>(
         };
     }
     inside.then_some(target)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use proptest::prelude::*;
+
+    fn scene() -> Vec<(Obstacle<3>, f64)> {
+        vec![
+            (
+                Obstacle::half_space(Vector3::zeros(), Vector3::y()).unwrap(),
+                0.5,
+            ),
+            (
+                Obstacle::sphere_outside(Vector3::new(0.0, 0.5, 0.0), 0.2).unwrap(),
+                0.0,
+            ),
+        ]
+    }
+
+    fn outside(obstacles: &[(Obstacle<3>, f64)], x: &Vector3<f64>) -> bool {
+        obstacles.iter().all(|(o, _)| o.distance(x) >= 0.0)
+    }
+
+    proptest! {
+        /// From any point outside, the move ends outside, exactly; a clear way is taken whole.
+        #[test]
+        fn a_move_never_ends_inside(
+            from in prop::array::uniform3(-1.0f64..1.0),
+            to in prop::array::uniform3(-1.0f64..1.0),
+        ) {
+            let obstacles = scene();
+            let from = Vector3::from(from);
+            let to = Vector3::from(to);
+            prop_assume!(outside(&obstacles, &from));
+            let new = feasible_move(&obstacles, &from, &to);
+            prop_assert!(outside(&obstacles, &new), "{new:?}");
+            let clear = obstacles.iter().all(|(o, _)| {
+                o.time_of_impact(&from, &(to - from)).is_none_or(|t| t > 1.0)
+            });
+            if clear {
+                prop_assert_eq!(new, to);
+            }
+        }
+    }
+
+    #[test]
+    fn a_vertex_on_a_surface_leaves_it_or_slides_but_does_not_enter() {
+        let obstacles = scene();
+        let on_ground = Vector3::new(0.7, 0.0, 0.0);
+        let up = Vector3::new(0.7, 0.1, 0.0);
+        assert_eq!(feasible_move(&obstacles, &on_ground, &up), up);
+        let along = Vector3::new(0.9, 0.0, 0.1);
+        assert_eq!(feasible_move(&obstacles, &on_ground, &along), along);
+        let down = Vector3::new(0.7, -0.1, 0.0);
+        assert_eq!(feasible_move(&obstacles, &on_ground, &down), on_ground);
+    }
+
+    #[test]
+    fn friction_sticks_inside_the_cone_and_slides_on_its_edge() {
+        // Ground y = 0 with μ = 0.5 and a margin of 1 mm; the vertex started at x = 0, 2 mm up.
+        let obstacles = &scene()[..1];
+        let margin = 1e-3;
+        let start = Vector3::new(0.0, 2e-3, 0.0);
+        // 0.5 mm inside the margin and 0.1 mm downhill: 0.1 ≤ 0.5 · 0.5, so it sticks where it
+        // started along the ground, on the margin's surface.
+        let stuck = contact_target(obstacles, margin, &start, &Vector3::new(1e-4, 5e-4, 0.0));
+        assert_eq!(stuck, Some(Vector3::new(0.0, margin, 0.0)));
+        // 0.4 mm inside and 1 mm along: the tangential move is cut by 0.5 · 0.4 = 0.2 mm.
+        let slid =
+            contact_target(obstacles, margin, &start, &Vector3::new(1e-3, 6e-4, 0.0)).unwrap();
+        assert!(
+            (slid - Vector3::new(8e-4, margin, 0.0)).norm() < 1e-15,
+            "{slid:?}"
+        );
+        // Clear of the margin: no target.
+        assert_eq!(
+            contact_target(obstacles, margin, &start, &Vector3::new(0.3, 2e-3, 0.0)),
+            None
+        );
+    }
 }
