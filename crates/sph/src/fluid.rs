@@ -200,10 +200,11 @@ fn finite<const D: usize>(v: &SVector<f64, D>) -> Option<f64> {
 }
 
 /// Runs `op` on a thread of the current rayon pool (the global pool, unless called inside
-/// `ThreadPool::install`), the caller waiting. A step runs about eight parallel loops; each one
-/// started from a thread outside the pool hands its work to the pool and waits to be woken, two
-/// context switches, which on SCENES.md's 5,000-particle dam break cost a fifth of the step
-/// (docs/sph.md, "Speed"). From a pool thread the loops split by work stealing instead.
+/// `ThreadPool::install`), the caller waiting. A step runs about eight parallel passes; each one
+/// started from a thread outside the pool hands its work to the pool and waits to be woken (two
+/// context switches), which on the 5,000-particle dam break made 45-60 context switches a step
+/// against 1-4 from a pool thread, where the passes split by work stealing instead
+/// (benches/results/sph-scene-speed.md; docs/sph.md, "Speed").
 fn on_pool<R: Send>(op: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| op())
 }
