@@ -16,10 +16,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("t,T,Z,steps,max_density_error");
     for k in 0..=frames {
         fluid.advance_to(end * k as f64 / frames as f64)?;
-        fluid.refresh();
         let t = fluid.time();
         let z = fluid.front(0, 3).unwrap_or(f64::NAN) / l;
-        let err = fluid.max_density_error();
+        let err = fluid.evaluated().max_density_error();
         println!(
             "{t:.4},{:.4},{z:.4},{},{err:.5}",
             t * (2.0 * 9.81 / l).sqrt(),

@@ -12,6 +12,24 @@ fn digest(values: impl Iterator<Item = f64>) -> u64 {
 }
 
 fn main() {
+    // The default method (symplectic Euler, continuity) over 2,000 steps, to t = 0.3 s, when the
+    // front has run along the floor: every fluid and boundary density and the front.
+    let mut fluid = Fluid::new(scenes::dam_break_2d(0.02).unwrap().setup).unwrap();
+    for _ in 0..2000 {
+        fluid.step().unwrap();
+    }
+    let front = fluid.front(0, 3).unwrap();
+    let e = fluid.evaluated();
+    let d = digest(
+        e.positions()
+            .iter()
+            .chain(e.velocities())
+            .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
+            .chain(e.densities().iter().copied())
+            .chain(e.boundary_densities().iter().copied())
+            .chain([e.fluid().time(), front]),
+    );
+    println!("2d long run, boundary densities included {d:016x}");
     for kernel in [KernelKind::CubicSpline, KernelKind::WendlandQuintic] {
         for (integrator, density) in [
             (Integrator::SymplecticEuler, DensityMethod::Continuity),
@@ -27,17 +45,16 @@ fn main() {
             for _ in 0..200 {
                 fluid.step().unwrap();
             }
-            fluid.refresh();
+            let e = fluid.evaluated();
             let d = digest(
-                fluid
-                    .positions()
+                e.positions()
                     .iter()
-                    .chain(fluid.velocities())
-                    .chain(fluid.accelerations())
+                    .chain(e.velocities())
+                    .chain(e.accelerations())
                     .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
-                    .chain(fluid.densities().iter().copied())
-                    .chain(fluid.pressures().iter().copied())
-                    .chain(std::iter::once(fluid.time())),
+                    .chain(e.densities().iter().copied())
+                    .chain(e.pressures().iter().copied())
+                    .chain(std::iter::once(e.fluid().time())),
             );
             println!("2d {kernel:?} {integrator:?} {density:?} {d:016x}");
         }
@@ -47,15 +64,14 @@ fn main() {
         for _ in 0..20 {
             fluid.step().unwrap();
         }
-        fluid.refresh();
+        let e = fluid.evaluated();
         let d = digest(
-            fluid
-                .positions()
+            e.positions()
                 .iter()
-                .chain(fluid.velocities())
-                .chain(fluid.accelerations())
+                .chain(e.velocities())
+                .chain(e.accelerations())
                 .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
-                .chain(fluid.densities().iter().copied()),
+                .chain(e.densities().iter().copied()),
         );
         println!("3d {kernel:?} {} {d:016x}", fluid.fluid_count());
     }

@@ -25,7 +25,8 @@ const COLLAPSE_FRACTION: f64 = 1e-6;
 pub struct StepReport {
     /// The step taken, Δt (s).
     pub dt: f64,
-    /// The stability bound at the step: min(C·h/(c₀ + |v|max), f·√(h/|a|max)) (s).
+    /// The stability bound at the step (s): the least of the CFL, force and viscous conditions
+    /// ([`Evaluated::stable_step`]).
     pub bound: f64,
 }
 
@@ -58,7 +59,7 @@ pub struct PhaseTimings {
     pub forces: Duration,
     /// Step size, the checks of the new state, and the position, velocity and density updates.
     pub integration: Duration,
-    /// Force evaluations made (one per step, plus one for each [`Fluid::refresh`] of a stale state).
+    /// Force evaluations made (one per step, plus one for each [`Fluid::evaluated`] of a stale state).
     pub evaluations: u64,
 }
 
@@ -75,6 +76,20 @@ struct Scratch<const D: usize> {
     pressure_terms: Vec<f64>,
     /// Each slot's neighbours and kernel derivatives, in chunks of [`PAIR_CHUNK`] slots.
     pairs: Vec<PairChunk>,
+    /// `fluid_before[k]`: how many of the slots before k hold fluid particles (k = 0..=n), so that
+    /// a run of slots holds fluid iff the counts at its ends differ.
+    fluid_before: Vec<u32>,
+    /// The state before a leapfrog step, put back if the step fails after the drift.
+    backup: Backup<D>,
+}
+
+/// The state by slot before a leapfrog step: what the step's drift and re-sorting change.
+#[derive(Debug, Clone, Default)]
+struct Backup<const D: usize> {
+    positions: Vec<SVector<f64, D>>,
+    velocities: Vec<SVector<f64, D>>,
+    densities: Vec<f64>,
+    ids: Vec<u32>,
 }
 
 /// The state in the caller's particle order (fluid first, then boundary), built from the slots on
@@ -115,15 +130,21 @@ impl PairChunk {
     }
 }
 
-/// A weakly compressible SPH fluid (SPEC §7) with fixed boundary particles, in `D` = 2 or 3.
+/// A weakly compressible SPH fluid with fixed boundary particles, in `D` = 2 or 3 (the model, its
+/// units and its validation: docs/sph.md).
 ///
 /// Particles are numbered fluid first (`0..fluid_count()`), then boundary. Each step evaluates, on
 /// a grid of cells one support radius wide (an O(n) neighbour search), the density (by summation,
 /// or its rate by the continuity equation), the Tait pressure p = B((ρ/ρ₀)^γ − 1), the symmetric
 /// pressure force −mᵢ Σⱼ mⱼ (pᵢ/ρᵢ² + pⱼ/ρⱼ²) ∇ᵢWᵢⱼ, Monaghan's artificial viscosity and gravity,
-/// and advances by the stable step (CFL and force conditions). Boundary particles take part in
-/// densities and forces with zero velocity and never move; their pressure is clamped at 0 so that
-/// walls push and never pull.
+/// and advances by the stable step (CFL, force and viscous conditions). Boundary particles take
+/// part in densities and forces with zero velocity and never move; their pressure is clamped at 0
+/// so that walls push and never pull.
+///
+/// The state is the positions, velocities and (continuity method) densities, read from the fluid
+/// at any time; what is evaluated from it (densities by summation, pressures, accelerations, the
+/// stable step) is read through [`Fluid::evaluated`], which evaluates first if the state has moved,
+/// so that no stale value can be read. A step that fails leaves the state exactly as it was.
 ///
 /// Sums run over each particle's neighbours in grid order (cell by cell, and by particle index
 /// within a cell), which depends on the positions only: results are the same, bit for bit, for any
@@ -140,6 +161,8 @@ impl PairChunk {
 /// let mut fluid = hooke_sph::Fluid::new(scene.setup)?;
 /// fluid.advance_to(0.01)?;
 /// assert!(fluid.time() == 0.01 && fluid.steps() > 0);
+/// let state = fluid.evaluated();
+/// assert!(state.max_density_error() < 0.01 && state.pressures().iter().all(|p| p.is_finite()));
 /// # Ok::<(), hooke_sph::SphError>(())
 /// ```
 #[derive(Debug, Clone)]
@@ -174,6 +197,16 @@ pub struct Fluid<const D: usize> {
 
 fn finite<const D: usize>(v: &SVector<f64, D>) -> Option<f64> {
     v.iter().copied().find(|x| !x.is_finite())
+}
+
+/// Runs `op` on a thread of the current rayon pool (the global pool, unless called inside
+/// `ThreadPool::install`), the caller waiting. A step runs about eight parallel passes; each one
+/// started from a thread outside the pool hands its work to the pool and waits to be woken (two
+/// context switches), which on the 5,000-particle dam break made 45-60 context switches a step
+/// against 1-4 from a pool thread, where the passes split by work stealing instead
+/// (benches/results/sph-scene-speed.md; docs/sph.md, "Speed").
+fn on_pool<R: Send>(op: impl FnOnce() -> R + Send) -> R {
+    rayon::scope(|_| op())
 }
 
 impl<const D: usize> Fluid<D> {
@@ -363,7 +396,10 @@ impl<const D: usize> Fluid<D> {
         self.mass
     }
 
-    /// The total fluid mass (kg, or kg/m in 2D): exactly conserved, since particles keep their mass.
+    /// The total fluid mass m·n (kg, or kg/m in 2D): conserved by construction, since particles
+    /// keep their mass and no particle is ever removed (a step that would take one out of the
+    /// domain fails). What the flow can change is the volume the particles stand for:
+    /// [`Evaluated::fluid_volume`].
     pub fn total_mass(&self) -> f64 {
         self.mass * self.fluid_count as f64
     }
@@ -402,25 +438,14 @@ impl<const D: usize> Fluid<D> {
         &self.view().positions[self.fluid_count..]
     }
 
-    /// Fluid densities (kg/mᴰ) as of the last evaluation: call [`refresh`](Self::refresh) first
-    /// for the current state's with the summation method.
-    pub fn densities(&self) -> &[f64] {
-        &self.view().densities[..self.fluid_count]
-    }
-
-    /// Boundary particle densities (kg/mᴰ), as [`densities`](Self::densities).
-    pub fn boundary_densities(&self) -> &[f64] {
-        &self.view().densities[self.fluid_count..]
-    }
-
-    /// Fluid pressures (Pa in 3D, N/m in 2D) as of the last evaluation (see [`refresh`](Self::refresh)).
-    pub fn pressures(&self) -> &[f64] {
-        &self.view().pressures[..self.fluid_count]
-    }
-
-    /// Fluid accelerations (m/s²) as of the last evaluation (see [`refresh`](Self::refresh)).
-    pub fn accelerations(&self) -> &[SVector<f64, D>] {
-        &self.view().accelerations[..self.fluid_count]
+    /// The state with everything evaluated from it: densities, pressures, accelerations and the
+    /// stable step, all of the current positions, velocities and densities. Evaluates them first
+    /// if a step has moved the particles since the last evaluation (after a symplectic Euler step;
+    /// the next step reuses the evaluation, so a run that reads every frame pays nothing extra).
+    /// The view borrows the fluid, so it cannot outlive the state it describes.
+    pub fn evaluated(&mut self) -> Evaluated<'_, D> {
+        self.refresh();
+        Evaluated { fluid: self }
     }
 
     /// Time spent per phase.
@@ -433,25 +458,12 @@ impl<const D: usize> Fluid<D> {
         self.timings = PhaseTimings::default();
     }
 
-    /// Evaluates densities, pressures and accelerations for the current state if they are stale
-    /// (after a symplectic Euler step). The next step reuses the evaluation, so this costs nothing
-    /// over a run that reports every frame.
-    pub fn refresh(&mut self) {
+    /// Evaluates densities (summation), pressures and accelerations for the current state if they
+    /// are stale.
+    fn refresh(&mut self) {
         if !self.evaluated {
             self.evaluate();
         }
-    }
-
-    /// The largest density error maxᵢ |ρᵢ/ρ₀ − 1| over fluid particles, as of the last evaluation.
-    pub fn max_density_error(&self) -> f64 {
-        let r0 = self.params.rest_density;
-        let nf = self.fluid_count as u32;
-        self.densities
-            .par_iter()
-            .zip(self.ids.par_iter())
-            .filter(|(_, &i)| i < nf)
-            .map(|(r, _)| (r / r0 - 1.0).abs())
-            .reduce(|| 0.0, f64::max)
     }
 
     /// Kinetic energy ½ m Σ |vᵢ|² of the fluid (J, or J/m in 2D), summed in index order.
@@ -504,25 +516,44 @@ impl<const D: usize> Fluid<D> {
             .reduce_with(f64::max)
     }
 
-    /// The stability bound min(C·h/(c₀ + |v|max), f·√(h/|a|max)) (s) for the current velocities and
-    /// the last evaluation's accelerations.
-    pub fn stable_step(&self) -> f64 {
+    /// The stability bound of the evaluated state (s): the least of
+    ///
+    /// - the CFL condition C·h/(c₀ + |v|max);
+    /// - the force condition f·√(h/|a|max);
+    /// - the viscous condition of the artificial viscosity, Δt ≤ 0.125 h²/ν with its equivalent
+    ///   kinematic viscosity ν = α h c₀ / (2(D + 2)), that is Δt ≤ (D + 2) h / (4 α c₀)
+    ///   (docs/sph.md, "Time step"). At SCENES.md's α = 0.1 and C = 0.4 it is 25 times the CFL
+    ///   bound (31 times in 3D) and never binds; it matters from α ≈ 2.5 on.
+    fn stable_step(&self) -> f64 {
         let p = &self.params;
         let h = p.smoothing_length;
-        let v_max = self.max_speed();
-        // Boundary accelerations are zero: the maximum over every slot is the fluid's.
-        let a_max = self
-            .accelerations
+        // Boundary particles are at rest with zero acceleration: the maxima over every slot are
+        // the fluid's. One pass for both.
+        let (v2_max, a2_max) = self
+            .velocities
             .par_iter()
-            .map(|a| a.norm())
-            .reduce(|| 0.0, f64::max);
+            .zip(self.accelerations.par_iter())
+            .map(|(v, a)| (v.norm_squared(), a.norm_squared()))
+            .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+        let (v_max, a_max) = (v2_max.sqrt(), a2_max.sqrt());
         let cfl = p.courant * h / (p.sound_speed + v_max);
         let force = if a_max > 0.0 {
             p.force_factor * (h / a_max).sqrt()
         } else {
             f64::INFINITY
         };
-        cfl.min(force)
+        cfl.min(force).min(self.viscous_step())
+    }
+
+    /// The viscous condition (D + 2) h / (4 α c₀) (s), +∞ without viscosity: see
+    /// [`Evaluated::stable_step`].
+    pub fn viscous_step(&self) -> f64 {
+        let p = &self.params;
+        if p.viscosity_alpha > 0.0 {
+            (D as f64 + 2.0) * p.smoothing_length / (4.0 * p.viscosity_alpha * p.sound_speed)
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// The acoustic step C·h/c₀ (s): the stable step of a fluid at rest.
@@ -532,20 +563,23 @@ impl<const D: usize> Fluid<D> {
 
     /// Takes one step: the stable step, or the fixed step if one is set.
     ///
+    /// A step is all or nothing: if it fails, the fluid is exactly as before it (positions,
+    /// velocities, densities, time and step count, bit for bit), whichever the integrator.
+    ///
     /// # Errors
     /// [`SphError::StepAboveBound`] if the fixed step exceeds the bound; [`SphError::StepCollapsed`];
     /// [`SphError::LeftDomain`] or [`SphError::NonFiniteState`] if the step would move a fluid
-    /// particle out of the domain (with boundary-particle walls) or make a value non-finite, in
-    /// which case no particle has moved.
+    /// particle out of the domain (with boundary-particle walls) or make a value non-finite.
     pub fn step(&mut self) -> Result<StepReport, SphError> {
-        self.step_at_most(f64::INFINITY)
+        on_pool(|| self.step_at_most(f64::INFINITY))
     }
 
     /// Steps until [`time`](Self::time) reaches `t_end` (s), shortening the last step to land on
     /// it exactly. Does nothing if `t_end` ≤ the current time.
     ///
     /// # Errors
-    /// As [`step`](Self::step); the steps before the failing one are kept.
+    /// As [`step`](Self::step); the steps before the failing one are kept, the failing one leaves
+    /// nothing behind.
     pub fn advance_to(&mut self, t_end: f64) -> Result<AdvanceReport, SphError> {
         if !t_end.is_finite() {
             return Err(SphError::InvalidParameter {
@@ -554,6 +588,10 @@ impl<const D: usize> Fluid<D> {
                 allowed: "finite (s)",
             });
         }
+        on_pool(|| self.advance_on_pool(t_end))
+    }
+
+    fn advance_on_pool(&mut self, t_end: f64) -> Result<AdvanceReport, SphError> {
         let mut report = AdvanceReport {
             steps: 0,
             min_dt: f64::INFINITY,
@@ -581,6 +619,9 @@ impl<const D: usize> Fluid<D> {
         Ok(report)
     }
 
+    /// One step of at most `max_dt` (s). Everything that can fail is checked before anything
+    /// moves, except the leapfrog's second half-kick, which needs the forces at the new
+    /// positions: that step keeps a copy of the state and puts it back if the kick fails.
     fn step_at_most(&mut self, max_dt: f64) -> Result<StepReport, SphError> {
         self.refresh();
         let start = Instant::now();
@@ -605,39 +646,53 @@ impl<const D: usize> Fluid<D> {
             None => bound,
         }
         .min(max_dt);
-        let kick = match self.params.integrator {
-            Integrator::SymplecticEuler => dt,
-            Integrator::Leapfrog => 0.5 * dt,
-        };
-        self.check_candidate(dt, kick)?;
+        let leapfrog = self.params.integrator == Integrator::Leapfrog;
+        let kick = if leapfrog { 0.5 * dt } else { dt };
+        self.kick_and_check(dt, kick)?;
         let continuity = self.params.density == DensityMethod::Continuity;
         if continuity {
             self.timings.integration += start.elapsed();
-            self.continuity_rates(kick);
-            let bad = self.first_slot(|k| {
-                let r = self.densities[k] + dt * self.density_rates[k];
-                !(r.is_finite() && r > 0.0)
-            });
-            if let Some((i, k)) = bad {
+            let bad = self.continuity_rates(dt);
+            if bad {
+                let (i, k) = self
+                    .first_slot(|k| {
+                        let r = self.densities[k] + dt * self.density_rates[k];
+                        !(r.is_finite() && r > 0.0)
+                    })
+                    .expect("a density the rates' pass found bad");
                 let r = self.densities[k] + dt * self.density_rates[k];
                 return Err(self.non_finite("density", i, Some(r)));
             }
         }
         let start = Instant::now();
+        if leapfrog {
+            let (b, s) = (&mut self.scratch.backup, &self.velocities);
+            b.velocities.clone_from(s);
+            b.positions.clone_from(&self.positions);
+            b.densities.clone_from(&self.densities);
+            b.ids.clone_from(&self.ids);
+        }
 
+        // The kick (the velocities kick_and_check computed, the same arithmetic), the drift and
+        // the densities' update, in one pass.
         let nf = self.fluid_count as u32;
         let clamp = self.walls == Walls::Clamp;
         let (lo, hi) = (self.domain_min, self.domain_max);
+        let (kicked, rates) = (&self.scratch.velocities, &self.density_rates);
         self.velocities
             .par_iter_mut()
             .zip(self.positions.par_iter_mut())
-            .zip(self.accelerations.par_iter())
+            .zip(self.densities.par_iter_mut())
+            .zip(kicked.par_iter().zip(rates.par_iter()))
             .zip(self.ids.par_iter())
-            .for_each(|(((v, x), a), &i)| {
+            .for_each(|((((v, x), r), (kicked, rate)), &i)| {
+                if continuity {
+                    *r += dt * rate;
+                }
                 if i >= nf {
                     return;
                 }
-                *v += a * kick;
+                *v = *kicked;
                 *x += *v * dt;
                 if clamp {
                     for axis in 0..D {
@@ -651,37 +706,53 @@ impl<const D: usize> Fluid<D> {
                     }
                 }
             });
-        if continuity {
-            self.densities
-                .par_iter_mut()
-                .zip(self.density_rates.par_iter())
-                .for_each(|(r, d)| *r += dt * d);
-        }
         self.evaluated = false;
         self.view = OnceLock::new();
         self.timings.integration += start.elapsed();
-        if self.params.integrator == Integrator::Leapfrog {
+        if leapfrog {
             self.evaluate();
             let second = Instant::now();
-            self.velocities
+            let bad = self
+                .velocities
                 .par_iter_mut()
                 .zip(self.accelerations.par_iter())
                 .zip(self.ids.par_iter())
-                .for_each(|((v, a), &i)| {
+                .map(|((v, a), &i)| {
                     if i < nf {
                         *v += a * kick;
                     }
-                });
+                    finite(v).is_some()
+                })
+                .reduce(|| false, |a, b| a | b);
             self.view = OnceLock::new();
-            let bad_velocity = self.first_slot(|k| finite(&self.velocities[k]).is_some());
-            self.timings.integration += second.elapsed();
-            if let Some((i, k)) = bad_velocity {
-                return Err(self.non_finite("velocity", i, finite(&self.velocities[k])));
+            if bad {
+                let (i, k) = self
+                    .first_slot(|k| finite(&self.velocities[k]).is_some())
+                    .expect("a velocity the kick's pass found bad");
+                let error = self.non_finite("velocity", i, finite(&self.velocities[k]));
+                self.restore_backup();
+                self.timings.integration += second.elapsed();
+                return Err(error);
             }
+            self.timings.integration += second.elapsed();
         }
         self.time += dt;
         self.steps += 1;
         Ok(StepReport { dt, bound })
+    }
+
+    /// Puts back the state [`step_at_most`](Self::step_at_most) saved before a leapfrog step. The
+    /// evaluation (grid, pairs, pressures, accelerations) is of the failed state, so it is marked
+    /// stale: the next access evaluates the restored state again, to the same values as before
+    /// the step, since an evaluation depends on the state only (not on the storage order).
+    fn restore_backup(&mut self) {
+        let b = &mut self.scratch.backup;
+        std::mem::swap(&mut self.positions, &mut b.positions);
+        std::mem::swap(&mut self.velocities, &mut b.velocities);
+        std::mem::swap(&mut self.densities, &mut b.densities);
+        std::mem::swap(&mut self.ids, &mut b.ids);
+        self.evaluated = false;
+        self.view = OnceLock::new();
     }
 
     fn non_finite(&self, what: &'static str, index: usize, value: Option<f64>) -> SphError {
@@ -704,39 +775,59 @@ impl<const D: usize> Fluid<D> {
             .min()
     }
 
-    /// Checks, before anything moves, that the kick by `kick` and drift by `dt` keep every fluid
-    /// particle finite and (with boundary-particle walls) in the domain.
-    fn check_candidate(&self, dt: f64, kick: f64) -> Result<(), SphError> {
+    /// Writes the kicked velocities v + `kick`·a of every slot into the scratch (zero for boundary
+    /// particles, whose velocity and acceleration are zero), and checks, before anything moves,
+    /// that they and the drifted positions x + `dt`·v' of the fluid particles are finite and (with
+    /// boundary-particle walls) inside the domain.
+    fn kick_and_check(&mut self, dt: f64, kick: f64) -> Result<(), SphError> {
         let nf = self.fluid_count as u32;
         let keep_inside = self.walls == Walls::BoundaryParticles;
         let (lo, hi) = (self.domain_min, self.domain_max);
+        let n = self.positions.len();
+        let kicked = &mut self.scratch.velocities;
+        kicked.resize(n, SVector::zeros());
+        let outside = |x: &SVector<f64, D>| (0..D).any(|a| x[a] < lo[a] || x[a] > hi[a]);
+        let bad = kicked
+            .par_iter_mut()
+            .zip(self.velocities.par_iter())
+            .zip(self.accelerations.par_iter())
+            .zip(self.positions.par_iter().zip(self.ids.par_iter()))
+            .map(|(((kicked, v), a), (x, &i))| {
+                *kicked = v + a * kick;
+                if i >= nf {
+                    return false;
+                }
+                let x = x + *kicked * dt;
+                finite(kicked).is_some() || finite(&x).is_some() || (keep_inside && outside(&x))
+            })
+            .reduce(|| false, |a, b| a | b);
+        if !bad {
+            return Ok(());
+        }
         let candidate = |k: usize| {
             let v = self.velocities[k] + self.accelerations[k] * kick;
             (v, self.positions[k] + v * dt)
         };
-        let bad = self.first_slot(|k| {
-            if self.ids[k] >= nf {
-                return false;
-            }
-            let (v, x) = candidate(k);
-            finite(&v).is_some()
-                || finite(&x).is_some()
-                || (keep_inside && (0..D).any(|a| x[a] < lo[a] || x[a] > hi[a]))
-        });
-        if let Some((i, k)) = bad {
-            let (v, x) = candidate(k);
-            return Err(match (finite(&v), finite(&x)) {
-                (Some(value), _) => self.non_finite("velocity", i, Some(value)),
-                (None, Some(value)) => self.non_finite("position", i, Some(value)),
-                (None, None) => SphError::LeftDomain {
-                    index: i,
-                    position: x.iter().copied().collect(),
-                    step: self.steps + 1,
-                    time: self.time,
-                },
-            });
-        }
-        Ok(())
+        let (i, k) = self
+            .first_slot(|k| {
+                if self.ids[k] >= nf {
+                    return false;
+                }
+                let (v, x) = candidate(k);
+                finite(&v).is_some() || finite(&x).is_some() || (keep_inside && outside(&x))
+            })
+            .expect("a particle the kick's pass found bad");
+        let (v, x) = candidate(k);
+        Err(match (finite(&v), finite(&x)) {
+            (Some(value), _) => self.non_finite("velocity", i, Some(value)),
+            (None, Some(value)) => self.non_finite("position", i, Some(value)),
+            (None, None) => SphError::LeftDomain {
+                index: i,
+                position: x.iter().copied().collect(),
+                step: self.steps + 1,
+                time: self.time,
+            },
+        })
     }
 
     /// The Tait pressure of density `rho`, clamped at 0 where negative pressures are not wanted.
@@ -758,28 +849,23 @@ impl<const D: usize> Fluid<D> {
     }
 
     /// The continuity equation's rates dρᵢ/dt = Σⱼ m (vᵢ' − vⱼ')·∇ᵢWᵢⱼ at the evaluated positions for
-    /// the kicked velocities v' = v + `kick`·a, for every particle, into `density_rates`. Using the
-    /// kicked velocities makes (x, ρ) move together with the new velocity, as symplectic Euler and
-    /// leapfrog need: with the old ones the acoustic waves grow without bound.
-    fn continuity_rates(&mut self, kick: f64) {
+    /// the kicked velocities v' = v + kick·a of [`kick_and_check`](Self::kick_and_check), for every
+    /// particle, into `density_rates`; returns whether some ρ + `dt`·dρ/dt would be non-finite or
+    /// non-positive. Using the kicked velocities makes (x, ρ) move together with the new
+    /// velocity, as symplectic Euler and leapfrog need: with the old ones the acoustic waves grow
+    /// without bound.
+    fn continuity_rates(&mut self, dt: f64) -> bool {
         let start = Instant::now();
-        let m = self.mass;
-        let s = &mut self.scratch;
-        let (velocities, accelerations) = (&self.velocities, &self.accelerations);
-        s.velocities.resize(velocities.len(), SVector::zeros());
-        s.velocities
-            .par_iter_mut()
-            .zip(velocities.par_iter())
-            .zip(accelerations.par_iter())
-            .for_each(|((kicked, v), a)| *kicked = v + a * kick);
-        continuity_loop(
-            &s.pairs,
+        let bad = continuity_loop(
+            &self.scratch.pairs,
             &self.positions,
-            &s.velocities,
-            m,
+            &self.scratch.velocities,
+            self.mass,
+            (&self.densities, dt),
             &mut self.density_rates,
         );
         self.timings.density += start.elapsed();
+        bad
     }
 
     /// Rebuilds the grid and evaluates densities (summation), pressures and accelerations for the
@@ -892,11 +978,25 @@ impl<const D: usize> Fluid<D> {
                 sr: &self.densities,
                 terms: &s.pressure_terms,
             };
+            // Which runs of slots hold fluid: a boundary particle looks for fluid neighbours only.
+            s.fluid_before.resize(n + 1, 0);
+            let mut count = 0u32;
+            for (before, &i) in s.fluid_before.iter_mut().zip(self.ids.iter()) {
+                *before = count;
+                count += u32::from(i < nf);
+            }
+            s.fluid_before[n] = count;
             let cpu = [AtomicU64::new(0), AtomicU64::new(0)];
+            let pair_search = PairSearch {
+                grid,
+                support2,
+                fluid_before: &s.fluid_before,
+            };
+            let ps = &pair_search;
             let (pairs, out) = (&mut s.pairs, &mut self.accelerations);
             match (kernel.cubic_profile(), kernel.wendland_profile()) {
-                (Some(k), _) => pair_force_loop(k, grid, support2, &inputs, pairs, out, &cpu),
-                (_, Some(k)) => pair_force_loop(k, grid, support2, &inputs, pairs, out, &cpu),
+                (Some(k), _) => pair_force_loop(k, ps, &inputs, pairs, out, &cpu),
+                (_, Some(k)) => pair_force_loop(k, ps, &inputs, pairs, out, &cpu),
                 _ => unreachable!("a kernel is the cubic spline or Wendland's quintic"),
             }
             // The pass's wall time, split between search and forces as their CPU times.
@@ -911,6 +1011,89 @@ impl<const D: usize> Fluid<D> {
         self.timings.density += density;
         self.timings.forces += forces;
         self.timings.evaluations += 1;
+    }
+}
+
+/// The fluid's state with everything evaluated from it, from [`Fluid::evaluated`]: densities,
+/// pressures, accelerations and the stable step are those of the positions, velocities and
+/// densities shown beside them, whatever the integrator and density method. It borrows the
+/// fluid, so no step can run while it is held.
+///
+/// Units (docs/sph.md, "Units"): SI; in 2D the fluid is a slice of unit depth, so densities are
+/// kg/m³ and pressures Pa in 2D as in 3D, while masses are per metre of depth (kg/m) in 2D.
+#[derive(Debug, Clone, Copy)]
+pub struct Evaluated<'a, const D: usize> {
+    fluid: &'a Fluid<D>,
+}
+
+impl<'a, const D: usize> Evaluated<'a, D> {
+    /// The fluid (its parameters, time, counts and state).
+    pub fn fluid(&self) -> &'a Fluid<D> {
+        self.fluid
+    }
+
+    /// Fluid positions (m), in particle order.
+    pub fn positions(&self) -> &'a [SVector<f64, D>] {
+        self.fluid.positions()
+    }
+
+    /// Fluid velocities (m/s).
+    pub fn velocities(&self) -> &'a [SVector<f64, D>] {
+        self.fluid.velocities()
+    }
+
+    /// Fluid densities ρ (kg/m³; > 0): by summation over the current positions, or the
+    /// continuity equation's integrated state.
+    pub fn densities(&self) -> &'a [f64] {
+        &self.fluid.view().densities[..self.fluid.fluid_count]
+    }
+
+    /// Boundary particle densities (kg/m³), as [`densities`](Self::densities).
+    pub fn boundary_densities(&self) -> &'a [f64] {
+        &self.fluid.view().densities[self.fluid.fluid_count..]
+    }
+
+    /// Fluid pressures p = B((ρ/ρ₀)^γ − 1) (Pa), clamped at 0 with the summation method.
+    pub fn pressures(&self) -> &'a [f64] {
+        &self.fluid.view().pressures[..self.fluid.fluid_count]
+    }
+
+    /// Boundary particle pressures (Pa), clamped at 0 so that walls push and never pull.
+    pub fn boundary_pressures(&self) -> &'a [f64] {
+        &self.fluid.view().pressures[self.fluid.fluid_count..]
+    }
+
+    /// Fluid accelerations (m/s²): pressure, artificial viscosity and gravity.
+    pub fn accelerations(&self) -> &'a [SVector<f64, D>] {
+        &self.fluid.view().accelerations[..self.fluid.fluid_count]
+    }
+
+    /// The largest density error maxᵢ |ρᵢ/ρ₀ − 1| over fluid particles (dimensionless).
+    pub fn max_density_error(&self) -> f64 {
+        let f = self.fluid;
+        let r0 = f.params.rest_density;
+        let nf = f.fluid_count as u32;
+        f.densities
+            .par_iter()
+            .zip(f.ids.par_iter())
+            .filter(|(_, &i)| i < nf)
+            .map(|(r, _)| (r / r0 - 1.0).abs())
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// The fluid's volume Σᵢ m/ρᵢ over fluid particles (m³; in 2D m² per metre of depth), summed
+    /// in particle order: the space the particles stand for. Weakly compressible, it stays within
+    /// the density error of the initial volume.
+    pub fn fluid_volume(&self) -> f64 {
+        let m = self.fluid.mass;
+        self.densities().iter().map(|r| m / r).sum()
+    }
+
+    /// The stability bound of the next step (s): the least of the CFL condition
+    /// C·h/(c₀ + |v|max), the force condition f·√(h/|a|max) and the artificial viscosity's
+    /// condition (D + 2) h / (4 α c₀) ([`Fluid::viscous_step`]; docs/sph.md, "Time step").
+    pub fn stable_step(&self) -> f64 {
+        self.fluid.stable_step()
     }
 }
 
@@ -991,22 +1174,67 @@ fn summation_pair_loop<K: Profile, const D: usize>(
         });
 }
 
-/// Finds the neighbours of the slots of chunk `c` and their (dW/dr)/r into `chunk`.
+/// What the pair search of the continuity method reads besides the particles.
+struct PairSearch<'a, const D: usize> {
+    grid: &'a NeighbourGrid<D>,
+    /// The squared support radius (m²).
+    support2: f64,
+    /// `fluid_before[k]`: fluid particles among the slots before k.
+    fluid_before: &'a [u32],
+}
+
+/// As [`collect_neighbours`], for a boundary particle: its fluid neighbours only, skipping runs of
+/// slots without fluid (the walls away from the water) without looking at them.
+#[inline(always)]
+fn collect_fluid_neighbours<const D: usize>(
+    search: &PairSearch<'_, D>,
+    inputs: &ForceInputs<'_, D>,
+    x: &SVector<f64, D>,
+    out: &mut Neighbours,
+) -> usize {
+    let (sx, ids, nf) = (inputs.sx, inputs.ids, inputs.c.fluid_count);
+    let mut count = 0;
+    search.grid.for_each_candidate_run(x, |run| {
+        if search.fluid_before[run.end] == search.fluid_before[run.start] {
+            return;
+        }
+        let needed = count + run.len();
+        if out.len() < needed {
+            out.resize(needed, (0, 0.0));
+        }
+        let start = run.start;
+        for (offset, (y, &id)) in sx[run.clone()].iter().zip(&ids[run]).enumerate() {
+            let r2 = (x - y).norm_squared();
+            out[count] = ((start + offset) as u32, r2);
+            count += usize::from((r2 < search.support2) & (id < nf));
+        }
+    });
+    count
+}
+
+/// Finds the neighbours of the slots of chunk `c` and their (dW/dr)/r into `chunk`. A boundary
+/// particle's list holds its fluid neighbours only: its velocity and acceleration are zero, so a
+/// boundary neighbour adds exactly zero to its continuity rate (and its force is not computed);
+/// leaving them out changes no value.
 #[inline(always)]
 fn find_pairs<K: Profile, const D: usize>(
     kernel: K,
-    grid: &NeighbourGrid<D>,
-    sx: &[SVector<f64, D>],
-    support2: f64,
+    search: &PairSearch<'_, D>,
+    inputs: &ForceInputs<'_, D>,
     (c, len): (usize, usize),
     chunk: &mut PairChunk,
     nb: &mut Neighbours,
 ) {
+    let sx = inputs.sx;
     chunk.ends.clear();
     chunk.neighbours.clear();
     chunk.derivatives.clear();
     for k in c * PAIR_CHUNK..c * PAIR_CHUNK + len {
-        let count = collect_neighbours(grid, sx, &sx[k], k, support2, nb);
+        let count = if inputs.ids[k] < inputs.c.fluid_count {
+            collect_neighbours(search.grid, sx, &sx[k], k, search.support2, nb)
+        } else {
+            collect_fluid_neighbours(search, inputs, &sx[k], nb)
+        };
         let found = &nb[..count];
         // A loop without branches, which the compiler vectorises.
         chunk.neighbours.extend(found.iter().map(|&(j, _)| j));
@@ -1024,8 +1252,7 @@ fn find_pairs<K: Profile, const D: usize>(
 /// to `cpu`.
 fn pair_force_loop<K: Profile, const D: usize>(
     kernel: K,
-    grid: &NeighbourGrid<D>,
-    support2: f64,
+    search: &PairSearch<'_, D>,
     inputs: &ForceInputs<'_, D>,
     chunks: &mut [PairChunk],
     out: &mut [SVector<f64, D>],
@@ -1037,7 +1264,7 @@ fn pair_force_loop<K: Profile, const D: usize>(
         .enumerate()
         .for_each_init(Neighbours::new, |nb, (c, (chunk, out))| {
             let t0 = Instant::now();
-            find_pairs(kernel, grid, inputs.sx, support2, (c, out.len()), chunk, nb);
+            find_pairs(kernel, search, inputs, (c, out.len()), chunk, nb);
             let t1 = Instant::now();
             force_chunk(c, chunk, inputs, out);
             cpu[0].fetch_add((t1 - t0).as_nanos() as u64, Relaxed);
@@ -1045,18 +1272,22 @@ fn pair_force_loop<K: Profile, const D: usize>(
         });
 }
 
-/// dρᵢ/dt = Σⱼ m (vᵢ − vⱼ)·∇ᵢWᵢⱼ for every sorted slot, over the pairs of [`pair_loop`].
+/// dρᵢ/dt = Σⱼ m (vᵢ − vⱼ)·∇ᵢWᵢⱼ for every sorted slot into `out`, over the pairs of
+/// [`pair_force_loop`]; returns whether some ρᵢ + Δt·dρᵢ/dt, with `(densities, dt)`, is
+/// non-finite or non-positive.
 fn continuity_loop<const D: usize>(
     chunks: &[PairChunk],
     sx: &[SVector<f64, D>],
     sv: &[SVector<f64, D>],
     m: f64,
+    (densities, dt): (&[f64], f64),
     out: &mut [f64],
-) {
+) -> bool {
     out.par_chunks_mut(PAIR_CHUNK)
         .zip(chunks.par_iter())
         .enumerate()
-        .for_each(|(c, (rates, chunk))| {
+        .map(|(c, (rates, chunk))| {
+            let mut bad = false;
             for (i, rate) in rates.iter_mut().enumerate() {
                 let k = c * PAIR_CHUNK + i;
                 let (xi, vi) = (sx[k], sv[k]);
@@ -1069,8 +1300,12 @@ fn continuity_loop<const D: usize>(
                     d += m * f * vij.dot(&rij);
                 }
                 *rate = d;
+                let r = densities[k] + dt * d;
+                bad |= !(r.is_finite() && r > 0.0);
             }
-        });
+            bad
+        })
+        .reduce(|| false, |a, b| a | b)
 }
 
 /// What the force loop needs besides the particle data.

@@ -33,7 +33,7 @@ mod params;
 pub mod scenes;
 
 pub use error::SphError;
-pub use fluid::{AdvanceReport, Fluid, PhaseTimings, StepReport};
+pub use fluid::{AdvanceReport, Evaluated, Fluid, PhaseTimings, StepReport};
 pub use grid::NeighbourGrid;
 pub use kernel::{Kernel, KernelKind};
 pub use params::{DensityMethod, FluidParams, FluidSetup, Integrator, Walls};

@@ -121,11 +121,13 @@ impl std::str::FromStr for Walls {
     }
 }
 
-/// Physical and numerical parameters of a weakly compressible fluid. SI units; `D` is 2 or 3, and in
-/// 2D a "density" is a mass per area (kg/m²).
+/// Physical and numerical parameters of a weakly compressible fluid. SI units; `D` is 2 or 3. A 2D
+/// fluid is a slice of unit depth (docs/sph.md, "Units"): its densities are kg/m³ and its
+/// pressures Pa as in 3D, and only masses (kg/m), forces (N/m) and energies (J/m) are per metre
+/// of depth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FluidParams<const D: usize> {
-    /// Rest density ρ₀ (kg/mᴰ), > 0. Default 1000 (water).
+    /// Rest density ρ₀ (kg/m³, in 2D too), > 0. Default 1000 (water).
     pub rest_density: f64,
     /// Numerical speed of sound c₀ (m/s), > 0: about 10× the largest expected flow speed keeps
     /// density variations near 1 %. Default 62.6 = 10·√(2gH) for SCENES.md's 2 m column.
@@ -206,7 +208,7 @@ impl<const D: usize> FluidParams<D> {
             "rest_density",
             p.rest_density,
             p.rest_density > 0.0,
-            "> 0 (kg/m^D)",
+            "> 0 (kg/m^3)",
         )?;
         check(
             "sound_speed",
@@ -248,7 +250,7 @@ impl<const D: usize> FluidParams<D> {
         Ok(())
     }
 
-    /// The Tait stiffness B = ρ₀c₀²/γ (Pa in 3D, N/m in 2D).
+    /// The Tait stiffness B = ρ₀c₀²/γ (Pa).
     pub fn tait_stiffness(&self) -> f64 {
         self.rest_density * self.sound_speed * self.sound_speed / self.gamma
     }
@@ -265,8 +267,8 @@ pub struct FluidSetup<const D: usize> {
     pub domain_max: SVector<f64, D>,
     /// How the walls act.
     pub walls: Walls,
-    /// Mass of every particle, fluid and boundary (kg in 3D, kg/m in 2D), > 0: ρ₀Δxᴰ on a lattice of
-    /// spacing Δx.
+    /// Mass of every particle, fluid and boundary (kg in 3D, kg per metre of depth in 2D), > 0:
+    /// ρ₀Δxᴰ on a lattice of spacing Δx.
     pub particle_mass: f64,
     /// Initial fluid positions (m); at least one.
     pub fluid_positions: Vec<SVector<f64, D>>,

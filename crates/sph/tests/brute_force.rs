@@ -3,12 +3,13 @@
 //! after a few steps of a small dam break, for both kernels, both density methods, 2D and 3D; and
 //! the same flow with the particles numbered in another order, and with 1 and 2 threads.
 
-use hooke_sph::{scenes, DensityMethod, Fluid, FluidSetup, KernelKind};
+use hooke_sph::{scenes, DensityMethod, Evaluated, Fluid, FluidSetup, KernelKind};
 use nalgebra::SVector;
 
 /// Densities (by summation, or the state's with continuity), pressures and accelerations of every
 /// fluid particle by brute force.
-fn brute<const D: usize>(fluid: &Fluid<D>) -> (Vec<f64>, Vec<f64>, Vec<SVector<f64, D>>) {
+fn brute<const D: usize>(e: Evaluated<D>) -> (Vec<f64>, Vec<f64>, Vec<SVector<f64, D>>) {
+    let fluid = e.fluid();
     let p = fluid.params();
     let kernel = fluid.kernel();
     let m = fluid.particle_mass();
@@ -34,10 +35,9 @@ fn brute<const D: usize>(fluid: &Fluid<D>) -> (Vec<f64>, Vec<f64>, Vec<SVector<f
             })
             .collect()
     } else {
-        fluid
-            .densities()
+        e.densities()
             .iter()
-            .chain(fluid.boundary_densities())
+            .chain(e.boundary_densities())
             .copied()
             .collect()
     };
@@ -83,31 +83,31 @@ fn check<const D: usize>(setup: FluidSetup<D>, steps: usize, what: &str) {
     for _ in 0..steps {
         fluid.step().unwrap();
     }
-    fluid.refresh();
-    let (rho, pressure, acc) = brute(&fluid);
+    let e = fluid.evaluated();
+    let (rho, pressure, acc) = brute(e);
     let a_scale = acc.iter().map(|a| a.norm()).fold(0.0, f64::max);
     let p_scale = pressure.iter().map(|p| p.abs()).fold(0.0, f64::max);
     // (With summation on the coarse 3D lattice every pressure is clamped to 0.)
     assert!(a_scale > 0.0, "{what}: a trivial state");
     let p_scale = p_scale.max(1.0);
-    for i in 0..fluid.fluid_count() {
+    for i in 0..e.fluid().fluid_count() {
         // Only the order of the sums and powi against powf differ: round-off.
         assert!(
-            (fluid.densities()[i] - rho[i]).abs() <= 1e-12 * rho[i],
+            (e.densities()[i] - rho[i]).abs() <= 1e-12 * rho[i],
             "{what}: density {i}: {} against {}",
-            fluid.densities()[i],
+            e.densities()[i],
             rho[i]
         );
         assert!(
-            (fluid.pressures()[i] - pressure[i]).abs() <= 1e-9 * p_scale,
+            (e.pressures()[i] - pressure[i]).abs() <= 1e-9 * p_scale,
             "{what}: pressure {i}: {} against {}",
-            fluid.pressures()[i],
+            e.pressures()[i],
             pressure[i]
         );
         assert!(
-            (fluid.accelerations()[i] - acc[i]).norm() <= 1e-9 * a_scale,
+            (e.accelerations()[i] - acc[i]).norm() <= 1e-9 * a_scale,
             "{what}: acceleration {i}: {:?} against {:?}",
-            fluid.accelerations()[i],
+            e.accelerations()[i],
             acc[i]
         );
     }
@@ -173,7 +173,7 @@ fn accessors_follow_the_setup_numbering() {
             "particle {j} / {i}"
         );
         assert!((a.velocities()[j] - b.velocities()[i]).norm() < 1e-7);
-        assert!((a.densities()[j] - b.densities()[i]).abs() < 1e-7);
+        assert!((a.evaluated().densities()[j] - b.evaluated().densities()[i]).abs() < 1e-7);
     }
     assert_eq!(a.boundary_positions(), b.boundary_positions());
 }
@@ -190,16 +190,16 @@ fn scrambled_and_3d_runs_agree_bit_for_bit_on_1_and_2_threads() {
             for _ in 0..steps {
                 fluid.step().unwrap();
             }
-            fluid.refresh();
-            let vectors = fluid
+            let e = fluid.evaluated();
+            let vectors = e
                 .positions()
                 .iter()
-                .chain(fluid.velocities())
-                .chain(fluid.accelerations());
+                .chain(e.velocities())
+                .chain(e.accelerations());
             vectors
                 .flat_map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-                .chain(fluid.densities().iter().map(|x| x.to_bits()))
-                .chain(fluid.pressures().iter().map(|x| x.to_bits()))
+                .chain(e.densities().iter().map(|x| x.to_bits()))
+                .chain(e.pressures().iter().map(|x| x.to_bits()))
                 .collect()
         })
     }

@@ -61,13 +61,13 @@ fn cloud<const D: usize>(side: usize, density: DensityMethod, kernel: KernelKind
 
 fn check_momentum<const D: usize>(setup: FluidSetup<D>) {
     let mut fluid = Fluid::new(setup).unwrap();
-    fluid.refresh();
     let m = fluid.particle_mass();
-    let total: SVector<f64, D> = fluid.accelerations().iter().map(|a| a * m).sum();
-    let scale: f64 = fluid.accelerations().iter().map(|a| a.norm() * m).sum();
+    let e = fluid.evaluated();
+    let total: SVector<f64, D> = e.accelerations().iter().map(|a| a * m).sum();
+    let scale: f64 = e.accelerations().iter().map(|a| a.norm() * m).sum();
     // Pair forces cancel exactly in exact arithmetic; in floating point the sum of n terms of size
     // `scale`/n errs by about n·ε·scale at worst.
-    let n = fluid.fluid_count() as f64;
+    let n = e.fluid().fluid_count() as f64;
     assert!(scale > 0.0);
     assert!(
         total.norm() <= 4.0 * n * f64::EPSILON * scale,
@@ -106,12 +106,12 @@ fn one_and_two_threads_agree_bit_for_bit() {
                 for _ in 0..60 {
                     fluid.step().unwrap();
                 }
-                fluid.refresh();
+                let e = fluid.evaluated();
                 (
-                    fluid.positions().to_vec(),
-                    fluid.velocities().to_vec(),
-                    fluid.densities().to_vec(),
-                    fluid.time(),
+                    e.positions().to_vec(),
+                    e.velocities().to_vec(),
+                    e.densities().to_vec(),
+                    e.fluid().time(),
                 )
             })
         };
@@ -285,4 +285,135 @@ fn advance_lands_on_the_end_time() {
     assert!(r.steps >= 1 && r.min_dt <= r.max_dt);
     assert_eq!(fluid.advance_to(0.001).unwrap().steps, 0);
     assert!(fluid.advance_to(f64::NAN).is_err());
+}
+
+/// Everything a step may change, bit for bit: positions, velocities, densities, pressures and
+/// accelerations (fluid and boundary), time and step count.
+type Snapshot = (Vec<u64>, f64, u64);
+
+fn snapshot(fluid: &mut Fluid<2>) -> Snapshot {
+    let e = fluid.evaluated();
+    let vectors = e
+        .positions()
+        .iter()
+        .chain(e.velocities())
+        .chain(e.accelerations())
+        .flat_map(|v| [v.x.to_bits(), v.y.to_bits()]);
+    let scalars = e
+        .densities()
+        .iter()
+        .chain(e.boundary_densities())
+        .chain(e.pressures())
+        .chain(e.boundary_pressures())
+        .map(|x| x.to_bits());
+    let bits = vectors.chain(scalars).collect();
+    (bits, e.fluid().time(), e.fluid().steps())
+}
+
+#[test]
+fn a_failed_step_leaves_the_fluid_as_it_was() {
+    // A lone fluid particle of enormous density (its Tait pressure overflows to +inf, harmless
+    // while it has no neighbour) flies at the column, 0.29 m from its right edge: one step of
+    // at most C·h = 0.052 m brings it within the support 2h = 0.26 m of a column particle, and
+    // the forces at the new positions are then non-finite. Symplectic Euler finds this at the
+    // start of the next step, before anything moves; leapfrog finds it in the same step's
+    // second half-kick, after the drift, and must put the state back.
+    let injected = |integrator| {
+        let mut s = small_setup();
+        s.params.integrator = integrator;
+        s.fluid_velocities = vec![SVector::zeros(); s.fluid_positions.len()];
+        s.fluid_positions
+            .push(SVector::<f64, 2>::new(0.95 + 0.29, 0.55));
+        s.fluid_velocities.push(SVector::<f64, 2>::new(-1e4, 0.0));
+        s.fluid_densities.push(1e100);
+        Fluid::new(s).unwrap()
+    };
+
+    let mut fluid = injected(Integrator::Leapfrog);
+    let before = snapshot(&mut fluid);
+    let e = fluid.step().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SphError::NonFiniteState {
+                what: "velocity",
+                step: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        snapshot(&mut fluid) == before,
+        "leapfrog: the failed step moved the fluid"
+    );
+    // The same failure again, and the fluid still as it was: nothing was left half done.
+    assert!(fluid.step().is_err());
+    assert!(snapshot(&mut fluid) == before);
+
+    let mut fluid = injected(Integrator::SymplecticEuler);
+    fluid.step().unwrap();
+    let before = snapshot(&mut fluid);
+    let e = fluid.step().unwrap_err();
+    // (The non-finite forces make the force condition's bound 0, so this may be reported as
+    // the step collapsing.)
+    assert!(
+        matches!(
+            e,
+            SphError::NonFiniteState { step: 2, .. } | SphError::StepCollapsed { .. }
+        ),
+        "{e}"
+    );
+    assert!(
+        snapshot(&mut fluid) == before,
+        "symplectic Euler: the failed step moved the fluid"
+    );
+
+    // advance_to keeps the steps before the failing one and nothing of it.
+    let mut fluid = injected(Integrator::Leapfrog);
+    let before = snapshot(&mut fluid);
+    assert!(fluid.advance_to(0.01).is_err());
+    assert!(snapshot(&mut fluid) == before);
+}
+
+#[test]
+fn the_evaluated_view_is_of_the_current_state() {
+    // After a symplectic Euler step the last evaluation is of the previous positions; the view
+    // evaluates the current ones, so its densities (summation) are those of a fluid built anew
+    // from the moved particles.
+    let mut s = small_setup();
+    s.params.density = DensityMethod::Summation;
+    let mut fluid = Fluid::new(s.clone()).unwrap();
+    for _ in 0..5 {
+        fluid.step().unwrap();
+    }
+    let mut fresh_setup = s;
+    fresh_setup.fluid_positions = fluid.positions().to_vec();
+    fresh_setup.fluid_velocities = fluid.velocities().to_vec();
+    let mut fresh = Fluid::new(fresh_setup).unwrap();
+    let (e, f) = (fluid.evaluated(), fresh.evaluated());
+    assert!(e.densities() == f.densities());
+    assert!(e.pressures() == f.pressures());
+    assert!(e.accelerations() == f.accelerations());
+}
+
+#[test]
+fn the_stable_step_includes_the_viscous_condition() {
+    // At rest the CFL bound is the acoustic step C·h/c₀ and the force bound f·√(h/g) is far
+    // larger. At α = 0.1 the viscous bound (D + 2) h / (4 α c₀) is 25 times the acoustic step
+    // and does not bind; at α = 5 it is half of it and does.
+    let mut fluid = Fluid::new(small_setup()).unwrap();
+    let acoustic = fluid.acoustic_step();
+    assert!((fluid.viscous_step() / acoustic - 25.0).abs() < 1e-12);
+    assert_eq!(fluid.evaluated().stable_step(), acoustic);
+    let mut s = small_setup();
+    s.params.viscosity_alpha = 5.0;
+    let mut fluid = Fluid::new(s).unwrap();
+    let viscous = fluid.viscous_step();
+    assert!((viscous / acoustic - 0.5).abs() < 1e-12);
+    assert_eq!(fluid.evaluated().stable_step(), viscous);
+    assert_eq!(fluid.step().unwrap().dt, viscous);
+    s = small_setup();
+    s.params.viscosity_alpha = 0.0;
+    assert_eq!(Fluid::new(s).unwrap().viscous_step(), f64::INFINITY);
 }

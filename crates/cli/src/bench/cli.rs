@@ -96,7 +96,8 @@ pub struct BenchArgs {
     pub no_cache: bool,
     /// The fluid instead: time a 2D WCSPH step for each particle count, comma separated (e.g.
     /// 1e4,1e5), with the fluid's phase split, as a table (--json FILE, --plot FILE.png; --repeats
-    /// timed steps per count).
+    /// timed steps per count); an entry naming a built-in fluid scene (dam-break-2d) runs that
+    /// scene whole as `hooke run` does and reports its wall time and particle-steps per second.
     #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"])]
     pub sph: Option<String>,
     /// No progress lines on stderr.
@@ -116,7 +117,7 @@ Examples:
   hooke bench beam-4 --solver pd:1,10,100 --solver newton:1,2,3
   hooke bench --sweep N=10,20,40,80,160 --solver pd:10 --solver newton-tol:1e-8
   hooke bench --hard-cases
-  hooke bench --sph 1e4,1e5 --json out/sph.json --plot out/sph.png
+  hooke bench --sph 1e4,1e5,dam-break-2d --json out/sph.json --plot out/sph.png
   hooke bench cloth-40 --time-error --json out/cloth-40-time-error.json";
 
 /// Run `hooke bench` with `args`: print the table on stdout and write the files asked for.

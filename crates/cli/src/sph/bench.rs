@@ -6,6 +6,12 @@
 //! α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up, then `--repeats`
 //! steps are timed: wall time per step, fluid particle-steps per second, and the fluid's own phase
 //! timings per step (neighbour search, density, forces, integration).
+//!
+//! An entry may instead name a built-in fluid scene (`hooke bench --sph 1e4,dam-break-2d`): the
+//! scene is then run as `hooke run SCENE` runs it, frames and summary written (to a temporary
+//! directory, removed afterwards), and reported with the wall time, the part spent stepping and
+//! the part spent writing, and its fluid particle-steps per second: the rate a user meets, which
+//! a step of the column above only bounds (docs/sph.md, "Speed").
 
 use std::path::Path;
 use std::time::Instant;
@@ -49,9 +55,43 @@ pub struct SphBenchRecord {
     pub integration_ms: f64,
 }
 
-/// Parses `--sph`'s counts: comma separated, each a number such as `2000` or `1e5` (a leading
-/// `N=` is allowed).
-pub(crate) fn parse_counts(text: &str) -> Result<Vec<usize>, SphCliError> {
+/// One entry of `--sph`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Entry {
+    /// A column of about this many fluid particles, a few steps timed.
+    Count(usize),
+    /// A built-in fluid scene, run whole as `hooke run` runs it.
+    Scene(String),
+}
+
+/// A built-in scene's run as a user meets it; also the keys of its `--json` record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SphSceneRecord {
+    /// The scene, e.g. `dam-break-2d`.
+    pub scene: String,
+    /// Fluid particles.
+    pub fluid_particles: usize,
+    /// Wall particles.
+    pub boundary_particles: usize,
+    /// Steps taken over the run.
+    pub steps: u64,
+    /// Threads of the rayon pool.
+    pub threads: usize,
+    /// Wall time of the run, from the fluid's construction to the last file written (s).
+    pub wall_s: f64,
+    /// Of which stepping (s).
+    pub stepping_s: f64,
+    /// Of which the frames' records and files, the summary and the preview (s).
+    pub output_s: f64,
+    /// Fluid particles × steps per second of the whole run's wall time.
+    pub particle_steps_per_s: f64,
+    /// Fluid particles × steps per second of stepping.
+    pub stepping_particle_steps_per_s: f64,
+}
+
+/// Parses `--sph`'s entries: comma separated, each a particle count such as `2000` or `1e5` (a
+/// leading `N=` is allowed) or a built-in fluid scene's name.
+pub(crate) fn parse_entries(text: &str) -> Result<Vec<Entry>, SphCliError> {
     let bad = |reason: String| SphCliError::Argument {
         name: "sph",
         reason,
@@ -60,9 +100,14 @@ pub(crate) fn parse_counts(text: &str) -> Result<Vec<usize>, SphCliError> {
     let mut counts = Vec::new();
     for part in body.split(',') {
         let part = part.trim();
+        if super::is_builtin(part) {
+            counts.push(Entry::Scene(part.to_string()));
+            continue;
+        }
         let value: f64 = part.parse().map_err(|_| {
             bad(format!(
-                "{part:?} is not a number: expected particle counts such as 1e4,1e5"
+                "{part:?} is neither a number nor a built-in fluid scene: expected particle \
+                 counts such as 1e4,1e5 or a scene such as dam-break-2d"
             ))
         })?;
         if !(value.is_finite() && value >= COUNT_RANGE.0 && value <= COUNT_RANGE.1) {
@@ -71,9 +116,81 @@ pub(crate) fn parse_counts(text: &str) -> Result<Vec<usize>, SphCliError> {
                 COUNT_RANGE.0, COUNT_RANGE.1
             )));
         }
-        counts.push(value.round() as usize);
+        counts.push(Entry::Count(value.round() as usize));
     }
     Ok(counts)
+}
+
+/// Runs the built-in scene `name` as `hooke run` does, into a temporary directory.
+pub(crate) fn measure_scene(name: &str) -> Result<SphSceneRecord, SphCliError> {
+    let dir = tempfile::Builder::new()
+        .prefix("hooke-bench-sph-")
+        .tempdir()
+        .map_err(|e| SphCliError::io(&std::env::temp_dir(), e))?;
+    let times = super::run::run_timed(
+        &super::run::FluidRunOptions {
+            scene: name,
+            dx: None,
+            frames: None,
+            frame_interval: None,
+            integrator: None,
+            out: dir.path(),
+            quiet: true,
+        },
+        false,
+    )?;
+    let work = times.fluid_particles as f64 * times.steps as f64;
+    Ok(SphSceneRecord {
+        scene: name.to_string(),
+        fluid_particles: times.fluid_particles,
+        boundary_particles: times.boundary_particles,
+        steps: times.steps,
+        threads: rayon_threads(),
+        wall_s: times.wall.as_secs_f64(),
+        stepping_s: times.stepping.as_secs_f64(),
+        output_s: times.output.as_secs_f64(),
+        particle_steps_per_s: work / times.wall.as_secs_f64(),
+        stepping_particle_steps_per_s: work / times.stepping.as_secs_f64(),
+    })
+}
+
+/// The scenes' table `hooke bench --sph` prints.
+pub(crate) fn format_scene_table(records: &[SphSceneRecord]) -> String {
+    let mut s = format!(
+        "{:>16} {:>7} {:>6} {:>7} {:>8} {:>10} {:>8} {:>14} {:>14}\n",
+        "scene",
+        "fluid",
+        "walls",
+        "steps",
+        "wall s",
+        "stepping s",
+        "output s",
+        "particle-st/s",
+        "stepping p-s/s"
+    );
+    for r in records {
+        s.push_str(&format!(
+            "{:>16} {:>7} {:>6} {:>7} {:>8.2} {:>10.2} {:>8.2} {:>14.4e} {:>14.4e}\n",
+            r.scene,
+            r.fluid_particles,
+            r.boundary_particles,
+            r.steps,
+            r.wall_s,
+            r.stepping_s,
+            r.output_s,
+            r.particle_steps_per_s,
+            r.stepping_particle_steps_per_s
+        ));
+    }
+    s
+}
+
+/// A `--json` record: a count's or a scene's, in the order of `--sph`.
+#[derive(Serialize)]
+#[serde(untagged)]
+enum JsonRecord {
+    Count(SphBenchRecord),
+    Scene(SphSceneRecord),
 }
 
 /// Measures one count (see the [module](self)).
@@ -170,9 +287,10 @@ impl<'a> SphBenchOptions<'a> {
     }
 }
 
-/// Runs `hooke bench --sph`: measures every count, prints the table, writes the files asked for.
+/// Runs `hooke bench --sph`: measures every count and scene, prints the tables, writes the files
+/// asked for (`--json`: one record per entry, in order; `--plot`: the counts).
 pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
-    let counts = parse_counts(options.counts)?;
+    let entries = parse_entries(options.counts)?;
     let steps = u32::try_from(options.steps)
         .ok()
         .filter(|&s| s >= 1)
@@ -181,26 +299,57 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
             reason: "with --sph: the timed steps per count, at least 1".into(),
         })?;
     let begin = Instant::now();
-    let mut records = Vec::new();
-    for count in counts {
-        if !options.quiet {
-            eprintln!(
-                "[{:7.1} s] sph N={count}: {steps} timed steps",
-                begin.elapsed().as_secs_f64()
-            );
+    let mut measured = Vec::new();
+    for entry in entries {
+        let at = begin.elapsed().as_secs_f64();
+        match entry {
+            Entry::Count(count) => {
+                if !options.quiet {
+                    eprintln!("[{at:7.1} s] sph N={count}: {steps} timed steps");
+                }
+                measured.push(JsonRecord::Count(measure(count, steps)?));
+            }
+            Entry::Scene(name) => {
+                if !options.quiet {
+                    eprintln!("[{at:7.1} s] sph {name}: the whole scene, as hooke run runs it");
+                }
+                measured.push(JsonRecord::Scene(measure_scene(&name)?));
+            }
         }
-        records.push(measure(count, steps)?);
     }
-    println!(
-        "2D WCSPH step cost (column in a tank, SCENES.md's parameters), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
-        rayon_threads()
-    );
-    print!("{}", format_table(&records));
+    let records: Vec<SphBenchRecord> = measured
+        .iter()
+        .filter_map(|m| match m {
+            JsonRecord::Count(r) => Some(r.clone()),
+            JsonRecord::Scene(_) => None,
+        })
+        .collect();
+    let scenes: Vec<SphSceneRecord> = measured
+        .iter()
+        .filter_map(|m| match m {
+            JsonRecord::Scene(r) => Some(r.clone()),
+            JsonRecord::Count(_) => None,
+        })
+        .collect();
+    if !records.is_empty() {
+        println!(
+            "2D WCSPH step cost (column in a tank, SCENES.md's parameters), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            rayon_threads()
+        );
+        print!("{}", format_table(&records));
+    }
+    if !scenes.is_empty() {
+        println!(
+            "Fluid scenes run as `hooke run` runs them (frames written), {} thread(s)",
+            rayon_threads()
+        );
+        print!("{}", format_scene_table(&scenes));
+    }
     if let Some(path) = options.json {
         create_parent(path)?;
-        crate::output::write_json_atomically(path, &records, true)?;
+        crate::output::write_json_atomically(path, &measured, true)?;
     }
-    if let Some(path) = options.plot {
+    if let (Some(path), false) = (options.plot, records.is_empty()) {
         create_parent(path)?;
         plot(path, &records)?;
     }
@@ -346,10 +495,17 @@ mod tests {
 
     #[test]
     fn counts_parse() {
-        assert_eq!(parse_counts("1e4,1e5").unwrap(), vec![10_000, 100_000]);
-        assert_eq!(parse_counts("N=2000").unwrap(), vec![2000]);
-        for bad in ["", "abc", "1e9", "5", "1e4,-3", "nan"] {
-            let e = parse_counts(bad).unwrap_err().to_string();
+        assert_eq!(
+            parse_entries("1e4,1e5").unwrap(),
+            vec![Entry::Count(10_000), Entry::Count(100_000)]
+        );
+        assert_eq!(parse_entries("N=2000").unwrap(), vec![Entry::Count(2000)]);
+        assert_eq!(
+            parse_entries("400, dam-break-2d").unwrap(),
+            vec![Entry::Count(400), Entry::Scene("dam-break-2d".into())]
+        );
+        for bad in ["", "abc", "1e9", "5", "1e4,-3", "nan", "dam-break-4d"] {
+            let e = parse_entries(bad).unwrap_err().to_string();
             assert!(e.contains("--sph"), "{bad}: {e}");
         }
     }

@@ -2,7 +2,8 @@
 //!
 //! - `frames/frame_NNNN.vtk`: the fluid particles of frame N (0 the initial state) as a legacy
 //!   ASCII VTK unstructured grid of vertex cells, 2D with z = 0, with the point data `velocity`
-//!   (vectors, m/s), `density` (kg/m^D) and `pressure` (Pa in 3D, N/m in 2D);
+//!   (vectors, m/s), `density` (kg/m³) and `pressure` (Pa): a 2D fluid is a slice of unit depth
+//!   (docs/sph.md, "Units");
 //! - `walls.vtk`: the boundary particles (fixed), as vertices without data;
 //! - `summary.json`: [`FluidSummary`], one [`FluidFrameRecord`] per frame;
 //! - `preview.png`: the last frame, particles coloured by speed, walls drawn ([`super::preview`]).
@@ -15,10 +16,10 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use hooke_sph::scenes::{self, FluidScene};
-use hooke_sph::{Fluid, Integrator};
+use hooke_sph::{Evaluated, Fluid, Integrator};
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use vtkio::model::{
@@ -57,8 +58,9 @@ pub(crate) struct FluidRunOptions<'a> {
     pub quiet: bool,
 }
 
-/// `summary.json` of a fluid run. Units are SI; in 2D masses are per metre of depth (kg/m),
-/// densities per area (kg/m²), pressures N/m and energies J/m.
+/// `summary.json` of a fluid run. Units are SI; a 2D fluid is a slice of unit depth, so its
+/// densities are kg/m³ and pressures Pa as in 3D, while masses are per metre of depth (kg/m) and
+/// energies J/m (docs/sph.md, "Units").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FluidSummary {
     /// The scene, e.g. `dam-break-2d`.
@@ -71,7 +73,7 @@ pub struct FluidSummary {
     pub fluid_particles: usize,
     /// Boundary (wall) particles, fixed.
     pub boundary_particles: usize,
-    /// Mass of each particle, ρ₀Δx^D.
+    /// Mass of each particle, ρ₀Δx^D (kg; kg/m in 2D).
     pub particle_mass: f64,
     /// Lattice spacing Δx (m).
     pub dx: f64,
@@ -79,7 +81,7 @@ pub struct FluidSummary {
     pub smoothing_length: f64,
     /// Speed of sound c₀ (m/s).
     pub sound_speed: f64,
-    /// Rest density ρ₀.
+    /// Rest density ρ₀ (kg/m³).
     pub rest_density: f64,
     /// `symplectic-euler` or `leapfrog`.
     pub integrator: String,
@@ -210,16 +212,43 @@ fn override_dx(text: &str, path: &Path, dx: f64) -> Result<String, SphCliError> 
 /// [`SphCliError`]: a bad scene, file or option; a failed step (after the summary of the frames
 /// before it is written); an output file that cannot be written.
 pub(crate) fn run(options: &FluidRunOptions) -> Result<(), SphCliError> {
+    run_timed(options, true).map(|_| ())
+}
+
+/// Where the wall time of a fluid run went.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RunTimes {
+    /// Fluid particles.
+    pub fluid_particles: usize,
+    /// Boundary particles.
+    pub boundary_particles: usize,
+    /// Steps taken.
+    pub steps: u64,
+    /// From the fluid's construction to the last file written.
+    pub wall: Duration,
+    /// In [`Fluid::advance_to`] and the evaluation of each frame's state.
+    pub stepping: Duration,
+    /// Each frame's record (front, energies) and VTK file, the summary and the preview.
+    pub output: Duration,
+}
+
+/// As [`run`], returning where the time went; `announce` prints the scene's header line and the
+/// closing line on stderr (the benchmark prints its own).
+pub(crate) fn run_timed(
+    options: &FluidRunOptions,
+    announce: bool,
+) -> Result<RunTimes, SphCliError> {
     match load_scene(options)? {
-        AnyScene::Two(s) => run_scene(s, options),
-        AnyScene::Three(s) => run_scene(s, options),
+        AnyScene::Two(s) => run_scene(s, options, announce),
+        AnyScene::Three(s) => run_scene(s, options, announce),
     }
 }
 
 fn run_scene<const D: usize>(
     mut scene: FluidScene<D>,
     options: &FluidRunOptions,
-) -> Result<(), SphCliError> {
+    announce: bool,
+) -> Result<RunTimes, SphCliError> {
     let name = scene.name.clone();
     if let Some(text) = options.integrator {
         scene.setup.params.integrator =
@@ -246,6 +275,7 @@ fn run_scene<const D: usize>(
         }
         None => scene.end_time / scene.frames.max(1) as f64,
     };
+    let begin = Instant::now();
     let mut fluid =
         Fluid::new(scene.setup.clone()).map_err(|e| SphCliError::fluid(&name, "setup", e))?;
 
@@ -283,8 +313,9 @@ fn run_scene<const D: usize>(
     };
     let dam_break = scene.dam_break;
     let record = |frame: usize, fluid: &mut Fluid<D>, report: Option<hooke_sph::AdvanceReport>| {
-        fluid.refresh();
         let front_x = if dam_break { fluid.front(0, 3) } else { None };
+        let e = fluid.evaluated();
+        let fluid = e.fluid();
         let time = fluid.time();
         FluidFrameRecord {
             frame,
@@ -293,7 +324,7 @@ fn run_scene<const D: usize>(
             frame_steps: report.map_or(0, |r| r.steps),
             min_dt: report.map(|r| r.min_dt).filter(|d| d.is_finite()),
             max_dt: report.map(|r| r.max_dt).filter(|&d| d > 0.0),
-            max_density_error: fluid.max_density_error(),
+            max_density_error: e.max_density_error(),
             kinetic_energy: fluid.kinetic_energy(),
             max_speed: fluid.max_speed(),
             particles: fluid.fluid_count(),
@@ -303,39 +334,54 @@ fn run_scene<const D: usize>(
             t: dam_break.then(|| time * (2.0 * gravity.abs() / width).sqrt()),
         }
     };
-    let write_frame = |index: usize, fluid: &Fluid<D>| {
+    let write_frame = |index: usize, e: Evaluated<D>| {
         write_particles(
             &frames_dir.join(format!("frame_{index:04}.vtk")),
-            fluid.positions(),
+            e.positions(),
             Some(ParticleData {
-                velocities: fluid.velocities(),
-                densities: fluid.densities(),
-                pressures: fluid.pressures(),
+                velocities: e.velocities(),
+                densities: e.densities(),
+                pressures: e.pressures(),
             }),
         )
     };
-    eprintln!(
-        "{name}: {} fluid and {} wall particles, dx = {} m, h = {:.4} m, c0 = {:.2} m/s, {}; \
+    if announce {
+        eprintln!(
+            "{name}: {} fluid and {} wall particles, dx = {} m, h = {:.4} m, c0 = {:.2} m/s, {}; \
          {frames} frames of {interval} s (acoustic step {:.3e} s)",
-        fluid.fluid_count(),
-        fluid.boundary_count(),
-        scene.dx,
-        params.smoothing_length,
-        params.sound_speed,
-        params.integrator.name(),
-        fluid.acoustic_step(),
-    );
+            fluid.fluid_count(),
+            fluid.boundary_count(),
+            scene.dx,
+            params.smoothing_length,
+            params.sound_speed,
+            params.integrator.name(),
+            fluid.acoustic_step(),
+        );
+    }
     let start = Instant::now();
+    // Stepping: the steps and each frame's evaluation (which the next step reuses); output:
+    // the rest of each frame.
+    let mut stepping = Duration::ZERO;
+    let mut output = Duration::ZERO;
+    fluid.evaluated();
+    stepping += start.elapsed();
+    let written = Instant::now();
     summary.frames.push(record(0, &mut fluid, None));
-    write_frame(0, &fluid)?;
+    write_frame(0, fluid.evaluated())?;
+    output += written.elapsed();
     let progress = progress_bar(frames as u64, options.quiet);
     let mut failure = None;
     for frame in 1..=frames {
         let t = frame as f64 * interval;
+        let stepped = Instant::now();
         match fluid.advance_to(t) {
             Ok(report) => {
+                fluid.evaluated();
+                stepping += stepped.elapsed();
+                let written = Instant::now();
                 summary.frames.push(record(frame, &mut fluid, Some(report)));
-                write_frame(frame, &fluid)?;
+                write_frame(frame, fluid.evaluated())?;
+                output += written.elapsed();
                 progress.set_message(format!("t = {:.3} s", fluid.time()));
                 progress.inc(1);
             }
@@ -350,6 +396,7 @@ fn run_scene<const D: usize>(
         }
     }
     progress.finish_and_clear();
+    let written = Instant::now();
     // The summary is written even after a failure, so that the frames before it can be inspected.
     crate::output::write_json_atomically(&options.out.join("summary.json"), &summary, true)?;
     if let Some(e) = failure {
@@ -385,15 +432,32 @@ fn run_scene<const D: usize>(
         .iter()
         .map(|r| r.max_density_error)
         .fold(0.0, f64::max);
-    eprintln!(
-        "done in {:.2} s: {} steps, largest density error {:.2} %{front}; wrote {}/frames ({} files), walls.vtk, summary.json, preview.png",
-        start.elapsed().as_secs_f64(),
-        fluid.steps(),
-        100.0 * max_error,
-        options.out.display(),
-        frames + 1
-    );
-    Ok(())
+    output += written.elapsed();
+    let times = RunTimes {
+        fluid_particles: fluid.fluid_count(),
+        boundary_particles: fluid.boundary_count(),
+        steps: fluid.steps(),
+        wall: begin.elapsed(),
+        stepping,
+        output,
+    };
+    if announce {
+        let rate = fluid.fluid_count() as f64 * fluid.steps() as f64 / stepping.as_secs_f64();
+        eprintln!(
+            "done in {:.2} s: {} steps, largest density error {:.2} %{front}; stepping {:.2} s \
+             ({:.2e} fluid particle-steps/s), output {:.2} s; wrote {}/frames ({} files), \
+             walls.vtk, summary.json, preview.png",
+            start.elapsed().as_secs_f64(),
+            fluid.steps(),
+            100.0 * max_error,
+            stepping.as_secs_f64(),
+            rate,
+            output.as_secs_f64(),
+            options.out.display(),
+            frames + 1
+        );
+    }
+    Ok(times)
 }
 
 /// Removes the frame files of an earlier run, so that the directory holds exactly this run's.
