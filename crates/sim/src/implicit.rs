@@ -830,7 +830,7 @@ impl<const D: usize> BackwardEuler<D> {
                 for v in 0..positions.len() {
                     self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
-                objective.set_step(&self.y, positions, unknowns);
+                objective.set_step_with_velocities(&self.y, positions, Some(velocities), unknowns);
                 objective.set_dashpot(scene.damping().dashpot, &self.x_start);
                 let report = newton
                     .minimize(objective.as_mut(), unknowns)
@@ -853,7 +853,7 @@ impl<const D: usize> BackwardEuler<D> {
                 for v in 0..positions.len() {
                     self.y[v] = target(v, &positions[v], &velocities[v]);
                 }
-                objective.set_step(&self.y, positions, unknowns);
+                objective.set_step_with_velocities(&self.y, positions, Some(velocities), unknowns);
                 objective.set_dashpot(scene.damping().dashpot, &self.x_start);
                 let (iterations, residual, stop) = match layout {
                     None => method.minimize(objective.as_mut(), pd.as_mut(), unknowns)?,

@@ -125,6 +125,8 @@ pub struct BackwardEulerStep<const D: usize> {
     contact: Option<Box<StepContact<D>>>,
     /// Per vertex, a contact term's gradient or a trial move (scratch of the contact terms).
     contact_scratch: Vec<SVector<f64, D>>,
+    /// The unknowns of a candidate initial guess (sized on first use).
+    start_guess: Vec<f64>,
 }
 
 impl<const D: usize> BackwardEulerStep<D> {
@@ -219,6 +221,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             dashpot_directions: Vec::new(),
             contact: None,
             contact_scratch: Vec::new(),
+            start_guess: Vec::new(),
             free,
             pattern,
             counter,
@@ -266,9 +269,36 @@ impl<const D: usize> BackwardEulerStep<D> {
         positions: &[SVector<f64, D>],
         unknowns: &mut [f64],
     ) {
+        self.set_step_with_velocities(y, positions, None, unknowns);
+    }
+
+    /// [`BackwardEulerStep::set_step`] with the velocities v_n (m/s, per vertex) at the step's
+    /// start: with obstacles, where the way from x_n to y meets one, the initial guess is x_n + h v_n
+    /// (x_n moved on at its velocity, without the external forces' share of y) if the way from
+    /// x_n to it meets no obstacle and Φ (without the dashpot's Ψ, which
+    /// [`BackwardEulerStep::set_dashpot`] sets after this call) is lower there than at x_n; x_n
+    /// otherwise. A body resting on an obstacle, whose y lies inside it, but sliding or turning at
+    /// a steady velocity then starts where that velocity takes it: from x_n the first Newton step
+    /// would be that velocity, and a second one would be needed wherever it exceeds the
+    /// step-size tolerance. Without obstacles, or where the way to y is clear, the guess is y, as
+    /// for [`BackwardEulerStep::set_step`].
+    ///
+    /// # Panics
+    /// On length mismatches.
+    #[track_caller]
+    pub fn set_step_with_velocities(
+        &mut self,
+        y: &[SVector<f64, D>],
+        positions: &[SVector<f64, D>],
+        velocities: Option<&[SVector<f64, D>]>,
+        unknowns: &mut [f64],
+    ) {
         self.y.copy_from_slice(y);
         self.x.copy_from_slice(positions);
         let full = self.counter.is_some();
+        if let Some(v) = velocities {
+            assert_eq!(v.len(), positions.len(), "one velocity per vertex");
+        }
         // With obstacles the start must be feasible: y if the way from x_n to y stays clear of
         // every obstacle, x_n (outside every obstacle) otherwise. A start part of the way to y
         // would put the vertices nearest an obstacle at a tenth of their distance, deep in the
@@ -296,6 +326,44 @@ impl<const D: usize> BackwardEulerStep<D> {
                 unknowns[o..o + D].copy_from_slice(self.x[p as usize].as_slice());
             }
         }
+        if share < 1.0 {
+            if let Some(velocities) = velocities {
+                self.try_moving_start(velocities, unknowns);
+            }
+        }
+    }
+
+    /// Replace the initial guess x_n in `unknowns` by x_n + h v_n if the way there is clear of every
+    /// obstacle and Φ is lower there (see [`BackwardEulerStep::set_step_with_velocities`]).
+    fn try_moving_start(&mut self, velocities: &[SVector<f64, D>], unknowns: &mut [f64]) {
+        let Some(contact) = &self.contact else {
+            return;
+        };
+        let h = self.h;
+        let free = self.free.free_vertices();
+        for (d, v) in self.contact_scratch.iter_mut().zip(velocities) {
+            *d = v * h;
+        }
+        if contact.max_step(free, &self.x, &self.contact_scratch) < 1.0 {
+            return;
+        }
+        let full = self.counter.is_some();
+        let mut moved = std::mem::take(&mut self.start_guess);
+        moved.clear();
+        moved.extend_from_slice(unknowns);
+        for (f, &v) in free.iter().enumerate() {
+            let v = v as usize;
+            let o = Self::offset(full, f, v);
+            let p = self.x[v] + self.contact_scratch[v];
+            moved[o..o + D].copy_from_slice(p.as_slice());
+        }
+        let dashpot = std::mem::replace(&mut self.dashpot, 0.0);
+        let change = crate::NewtonProblem::objective_change(self, unknowns, &moved);
+        self.dashpot = dashpot;
+        if change < 0.0 {
+            unknowns.copy_from_slice(&moved);
+        }
+        self.start_guess = moved;
     }
 
     /// Add the dashpot dissipation potential Ψ (see the type's documentation) with coefficient

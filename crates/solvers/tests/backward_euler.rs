@@ -420,3 +420,60 @@ fn projective_dynamics_gives_the_same_bits_on_one_thread_and_two() {
         }
     }
 }
+
+/// With an obstacle in the way from x_n to y, the first iterate is x_n + h v_n where that way is
+/// clear and Φ is lower there (a body sliding along the ground), x_n otherwise.
+#[test]
+fn a_blocked_step_starts_where_the_velocity_takes_the_mesh() {
+    use hooke_assembly::contact::Obstacle;
+    use hooke_solvers::backward_euler::ContactModel;
+
+    let mesh = generators::cloth(4, 1e3).unwrap();
+    let h = 1.0 / 60.0;
+    // The cloth 0.1 mm above the ground y = 0, within the barrier's reach (0.3 mm): gravity's
+    // h² g = 2.7 mm takes y through the ground.
+    let lowest = mesh
+        .positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min);
+    let x_n: Vec<V> = mesh
+        .positions()
+        .iter()
+        .map(|p| p + V::new(0.0, 1e-4 - lowest, 0.0))
+        .collect();
+    let g = V::new(0.0, -9.81, 0.0);
+    let free = FreeDofs::new(mesh.vertex_count(), &[]).unwrap();
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
+    let ground = Obstacle::half_space(V::zeros(), V::y()).unwrap();
+    step.set_contact(
+        Some(ContactModel {
+            obstacles: vec![(ground, 0.0)],
+            distance: 3e-4,
+            stiffness: 1000.0 * 9.80665 / 3e-4,
+            friction_velocity: 1e-3,
+        }),
+        mesh.masses(),
+    );
+    let flatten = |x: &[V]| x.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<f64>>();
+    let mut unknowns = vec![0.0; step.dim()];
+    for (velocity, moves) in [
+        // Sliding along the ground: its way is clear, and Φ is lower there.
+        (V::new(0.01, 0.0, -0.02), true),
+        // Towards the ground at 1 m/s: h v_n crosses it.
+        (V::new(0.0, -1.0, 0.0), false),
+    ] {
+        let v = vec![velocity; x_n.len()];
+        let y: Vec<V> = x_n.iter().map(|p| p + velocity * h + g * (h * h)).collect();
+        step.set_step(&y, &x_n, &mut unknowns);
+        assert_eq!(unknowns, flatten(&x_n), "set_step starts at x_n");
+        step.set_step_with_velocities(&y, &x_n, Some(&v), &mut unknowns);
+        let moved: Vec<V> = x_n.iter().map(|p| p + velocity * h).collect();
+        let expected = if moves {
+            flatten(&moved)
+        } else {
+            flatten(&x_n)
+        };
+        assert_eq!(unknowns, expected, "velocity {velocity:?}");
+    }
+}
