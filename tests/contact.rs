@@ -107,6 +107,19 @@ fn run_counted(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> (Vec<f
     (energies, converged)
 }
 
+/// Every vertex's speed is at most `limit` (m/s).
+fn assert_at_rest(sim: &Simulation<3>, limit: f64, what: &str) {
+    let fastest = sim
+        .state()
+        .velocities
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.norm()));
+    assert!(
+        fastest <= limit,
+        "{what}: a vertex moves at {fastest:e} m/s"
+    );
+}
+
 /// [`run_counted`]'s energies.
 fn run(sim: &mut Simulation<3>, frames: usize, tolerance: f64) -> Vec<f64> {
     run_counted(sim, frames, tolerance).0
@@ -191,14 +204,10 @@ fn a_cloth_at_rest_on_the_ground_stays_at_rest() {
         let mut sim = Simulation::new(scene.clone(), state.clone(), settings(integrator)).unwrap();
         for frame in 1..=10 {
             let solver = sim.step().unwrap().solver.unwrap();
-            let fastest = sim
-                .state()
-                .velocities
-                .iter()
-                .fold(0.0f64, |m, v| m.max(v.norm()));
-            assert!(
-                fastest <= 1e-6,
-                "{integrator}: frame {frame}: a vertex moves at {fastest:e} m/s ({solver:?})"
+            assert_at_rest(
+                &sim,
+                1e-6,
+                &format!("{integrator}: frame {frame} ({solver:?})"),
             );
             if integrator == Integrator::Newton {
                 assert!(solver.iterations <= 1, "frame {frame}: {solver:?}");
@@ -235,14 +244,10 @@ fn a_cloth_at_rest_on_the_ground_stays_at_rest_under_projective_dynamics() {
         let mut sim = Simulation::new(scene.clone(), rest, settings(integrator)).unwrap();
         for frame in 1..=10 {
             let solver = sim.step().unwrap().solver.unwrap();
-            let fastest = sim
-                .state()
-                .velocities
-                .iter()
-                .fold(0.0f64, |m, v| m.max(v.norm()));
-            assert!(
-                fastest <= 1e-6,
-                "{integrator}: frame {frame}: a vertex moves at {fastest:e} m/s ({solver:?})"
+            assert_at_rest(
+                &sim,
+                1e-6,
+                &format!("{integrator}: frame {frame} ({solver:?})"),
             );
             assert!(sim.smallest_contact_distance() > 0.0);
         }
