@@ -36,10 +36,9 @@ use crate::cholesky::{CholeskyError, SparseCholesky};
 use crate::params::{self, ParamError};
 
 /// The default weight c of an active vertex's contact target, in units of its diagonal entry of
-/// the global matrix K (M + h² L) Kᵀ: 1. Chosen on bunny-drop, cloth-drape-20/40 and cloth-fall-40
-/// (PD and Chebyshev PD, 10 iterations a frame): from 0.03 to 100 the energy never rose above its
-/// start; below 1 vertices reach the obstacles' surfaces (the iterates' clamp, not the penalty,
-/// stops them), above it sliding along an obstacle slows further.
+/// the global matrix K (M + h² L) Kᵀ: 1, the smallest that keeps resting vertices off the
+/// obstacles' surfaces on the contact scenes (a larger one slows sliding further; the measurements
+/// are in benches/results/contact-scenes.md).
 pub const DEFAULT_CONTACT_WEIGHT: f64 = 1.0;
 
 /// The contact model of [`super::ProjectiveDynamics`]: static obstacles with their friction
