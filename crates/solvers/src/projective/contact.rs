@@ -38,8 +38,7 @@ use crate::params::{self, ParamError};
 /// The default weight c of an active vertex's contact target, in units of its diagonal entry of
 /// the global matrix K (M + h² L) Kᵀ: 1, the smallest of those measured (0.03 to 100) that keeps
 /// resting vertices off the obstacles' surfaces on the contact scenes (a larger one slows sliding
-/// further; the measurements
-/// are in benches/results/contact-scenes.md).
+/// further; the measurements are in benches/results/contact-scenes.md).
 pub const DEFAULT_CONTACT_WEIGHT: f64 = 1.0;
 
 /// The contact model of [`super::ProjectiveDynamics`]: static obstacles with their friction
