@@ -522,7 +522,7 @@ impl<const D: usize> Fluid<D> {
     /// - the force condition f·√(h/|a|max);
     /// - the viscous condition of the artificial viscosity, Δt ≤ 0.125 h²/ν with its equivalent
     ///   kinematic viscosity ν = α h c₀ / (2(D + 2)), that is Δt ≤ (D + 2) h / (4 α c₀)
-    ///   (docs/sph.md, "Time step"). At SCENES.md's α = 0.1 and C = 0.4 it is 25 times the CFL
+    ///   (docs/sph.md, "Time step"). At the scenes' α = 0.1 and C = 0.4 it is 25 times the CFL
     ///   bound (31 times in 3D) and never binds; it matters from α ≈ 2.5 on.
     fn stable_step(&self) -> f64 {
         let p = &self.params;

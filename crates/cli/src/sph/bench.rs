@@ -333,7 +333,7 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
         .collect();
     if !records.is_empty() {
         println!(
-            "2D WCSPH step cost (column in a tank, SCENES.md's parameters), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            "2D WCSPH step cost (column in a tank, the dam break's parameters (docs/sph.md)), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
             rayon_threads()
         );
         print!("{}", format_table(&records));
