@@ -67,6 +67,7 @@
 //! # tolerance = 1e-5       # linearized: relative residual; newton, newton-cg, lbfgs: step size, m/s; pd: change per iteration / h, m/s
 //! # pin_method = "reduction"  # or "counter-force" (linearized, newton; pd refuses it)
 //! # relaxation = "none"    # newton: or "buckling" (sweeps and fold elimination between steps)
+//! # factor_reuse = 4       # newton: CG iterations on an earlier matrix's factor before factoring; 0: off
 //!
 //! [run]
 //! steps = 30
@@ -374,6 +375,7 @@ struct IntegratorSection {
     energy_limit: Option<EnergyLimitValue>,
     pin_method: Option<String>,
     relaxation: Option<String>,
+    factor_reuse: Option<usize>,
 }
 
 /// `integrator.energy_limit`: a factor, or "off".
@@ -1086,6 +1088,13 @@ impl Context<'_> {
                     ..SolverOptions::default()
                 },
             ),
+            (
+                "integrator.factor_reuse",
+                SolverOptions {
+                    factor_reuse: i.factor_reuse,
+                    ..SolverOptions::default()
+                },
+            ),
         ] {
             settings
                 .apply_options(&options)
@@ -1231,6 +1240,7 @@ tolerance = 1e-9
                 iterations: Some(123),
                 tolerance: Some(1e-9),
                 relaxation: None,
+                factor_reuse: None,
             })
             .unwrap();
         assert_eq!(setup.settings, expected);
@@ -1276,6 +1286,42 @@ tolerance = 1e-9
             let err = parse(method, line).err().unwrap().to_string();
             assert!(
                 err.contains("integrator.relaxation") && err.contains(expected),
+                "{method} {line}: {err}"
+            );
+        }
+    }
+
+    /// `factor_reuse` sets Newton's CG iterations on a held factor (0: off); it is refused for
+    /// another integrator and out of range, naming its key.
+    #[test]
+    fn factor_reuse_key_reaches_newton() {
+        let parse = |method: &str, line: &str| {
+            parse(&format!(
+                "[integrator]\nmethod = \"{method}\"\ntime_step = 0.01\n{line}"
+            ))
+        };
+        let default = parse("newton", "").unwrap();
+        assert_eq!(
+            default.settings.newton.factor_reuse,
+            hooke_solvers::FactorReuse::DEFAULT
+        );
+        for n in [0, 9] {
+            let set = parse("newton", &format!("factor_reuse = {n}\n")).unwrap();
+            assert_eq!(set.settings.newton.factor_reuse.max_iterations, n);
+            assert_eq!(set.settings.solver_options().factor_reuse, Some(n));
+        }
+        for (method, line, expected) in [
+            (
+                "pd",
+                "factor_reuse = 2\n",
+                "applies only to the newton integrator",
+            ),
+            ("newton", "factor_reuse = 20000\n", "max_iterations"),
+            ("newton", "factor_reuse = -1\n", "factor_reuse"),
+        ] {
+            let err = parse(method, line).err().unwrap().to_string();
+            assert!(
+                err.contains("factor_reuse") && err.contains(expected),
                 "{method} {line}: {err}"
             );
         }

@@ -566,6 +566,10 @@ pub struct SolverOptions {
     pub tolerance: Option<f64>,
     /// Newton's relaxation preset (newton only).
     pub relaxation: Option<RelaxationPreset>,
+    /// Newton's factor reuse (newton only): the CG iterations allowed on the factor held from an
+    /// earlier Newton matrix before the matrix is factored ([`hooke_solvers::FactorReuse`]);
+    /// 0 factors every Newton matrix.
+    pub factor_reuse: Option<usize>,
 }
 
 impl Settings {
@@ -686,6 +690,16 @@ impl Settings {
             }
             self.newton.relaxation = preset.relaxation();
         }
+        if let Some(iterations) = options.factor_reuse {
+            if integrator != Integrator::Newton {
+                return Err(SimError::invalid(
+                    "factor reuse",
+                    iterations,
+                    format!("applies only to the newton integrator (this run uses {integrator})"),
+                ));
+            }
+            self.newton.factor_reuse.max_iterations = iterations;
+        }
         if let Some(tolerance) = options.tolerance {
             match integrator {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
@@ -724,11 +738,13 @@ impl Settings {
                 iterations: Some(self.linearized.max_iterations),
                 tolerance: Some(self.linearized.tolerance),
                 relaxation: None,
+                factor_reuse: None,
             },
             Integrator::Newton => SolverOptions {
                 iterations: Some(self.newton.max_iterations),
                 tolerance: Some(self.newton.tolerance),
                 relaxation: RelaxationPreset::of(&self.newton.relaxation),
+                factor_reuse: Some(self.newton.factor_reuse.max_iterations),
                 ..SolverOptions::default()
             },
             Integrator::ProjectiveDynamics => SolverOptions {
@@ -832,6 +848,7 @@ mod tests {
             iterations: Some(7),
             tolerance: Some(1e-6),
             relaxation: None,
+            factor_reuse: None,
         })
         .unwrap();
         assert_eq!(s.linearized.beta, 0.5);

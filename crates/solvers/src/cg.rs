@@ -80,6 +80,32 @@ impl ConjugateGradient {
         b: &[f64],
         x: &mut [f64],
     ) -> Result<Report, SolveError> {
+        let mut report = Report::start(self.params.max_iterations);
+        self.solve_into(a, preconditioner, b, x, &mut report, |_, _| false)?;
+        Ok(report)
+    }
+
+    /// [`ConjugateGradient::solve`] into `report`, which is reset first and keeps its history's
+    /// capacity: with a report made once, a solve allocates nothing. On an error the report's
+    /// history moves into the error and `report` is left empty. `give_up(k, residual)` is asked
+    /// after each iteration k ≥ 1 that has not converged: `true` stops the solve as
+    /// [`StopReason::Stagnated`] (a caller that expects fast convergence cuts a slow solve short).
+    ///
+    /// # Errors
+    /// As [`ConjugateGradient::solve`].
+    ///
+    /// # Panics
+    /// As [`ConjugateGradient::solve`].
+    #[track_caller]
+    pub(crate) fn solve_into(
+        &mut self,
+        a: &impl LinearOperator,
+        preconditioner: &mut impl Preconditioner,
+        b: &[f64],
+        x: &mut [f64],
+        report: &mut Report,
+        give_up: impl Fn(usize, f64) -> bool,
+    ) -> Result<(), SolveError> {
         let n = a.dim();
         assert_eq!(b.len(), n, "right-hand side length");
         assert_eq!(x.len(), n, "solution length");
@@ -88,9 +114,19 @@ impl ConjugateGradient {
         for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.ap] {
             v.resize(n, 0.0);
         }
-        let mut report = Report::start(self.params.max_iterations);
+        report.iterations = 0;
+        report.residuals.clear();
+        report.stop = StopReason::IterationLimit;
         let b_norm = dot(b, b).sqrt();
         let scale = if b_norm > 0.0 { 1.0 / b_norm } else { 1.0 };
+        let finish = |report: &mut Report, stop| {
+            report.stop = stop;
+            report.wall_time = start.elapsed();
+        };
+        let fail = |report: &mut Report, stop, error: fn(Report) -> SolveError| {
+            finish(report, stop);
+            Err(error(take_report(report)))
+        };
         // r = b − A x
         a.apply(x, &mut self.r);
         for (r, b) in self.r.iter_mut().zip(b) {
@@ -98,38 +134,51 @@ impl ConjugateGradient {
         }
         let mut residual = dot(&self.r, &self.r).sqrt() * scale;
         report.residuals.push(residual);
-        preconditioner.apply(&self.r, &mut self.z);
-        self.p.copy_from_slice(&self.z);
-        let mut rz = dot(&self.r, &self.z);
-        let finish = |mut report: Report, stop| {
-            report.stop = stop;
-            report.wall_time = start.elapsed();
-            report
-        };
+        // Convergence is tested before each application of the preconditioner, so that a solve
+        // converged in k iterations applies it k times (a factorisation's solve may cost more
+        // than the rest of an iteration).
+        let mut rz = 0.0;
         loop {
             if !residual.is_finite() {
-                return Err(SolveError::NonFinite {
-                    report: finish(report, StopReason::NonFinite),
+                return fail(report, StopReason::NonFinite, |report| {
+                    SolveError::NonFinite { report }
                 });
             }
             if residual <= self.params.tolerance {
-                return Ok(finish(report, StopReason::Converged));
+                finish(report, StopReason::Converged);
+                return Ok(());
             }
             if report.iterations >= self.params.max_iterations {
-                return Ok(finish(report, StopReason::IterationLimit));
+                finish(report, StopReason::IterationLimit);
+                return Ok(());
             }
+            if report.iterations > 0 && give_up(report.iterations, residual) {
+                finish(report, StopReason::Stagnated);
+                return Ok(());
+            }
+            preconditioner.apply(&self.r, &mut self.z);
+            let rz_next = dot(&self.r, &self.z);
+            if report.iterations == 0 {
+                self.p.copy_from_slice(&self.z);
+            } else {
+                let beta = rz_next / rz;
+                for (p, z) in self.p.iter_mut().zip(&self.z) {
+                    *p = z + beta * *p;
+                }
+            }
+            rz = rz_next;
             a.apply(&self.p, &mut self.ap);
             let curvature = dot(&self.p, &self.ap);
-            if curvature.is_nan() || curvature <= 0.0 {
-                return Err(if curvature.is_nan() {
-                    SolveError::NonFinite {
-                        report: finish(report, StopReason::NonFinite),
-                    }
-                } else {
-                    SolveError::NotPositiveDefinite {
-                        curvature,
-                        report: finish(report, StopReason::IterationLimit),
-                    }
+            if curvature.is_nan() {
+                return fail(report, StopReason::NonFinite, |report| {
+                    SolveError::NonFinite { report }
+                });
+            }
+            if curvature <= 0.0 {
+                finish(report, StopReason::IterationLimit);
+                return Err(SolveError::NotPositiveDefinite {
+                    curvature,
+                    report: take_report(report),
                 });
             }
             let alpha = rz / curvature;
@@ -144,13 +193,16 @@ impl ConjugateGradient {
             report.iterations += 1;
             residual = dot(&self.r, &self.r).sqrt() * scale;
             report.residuals.push(residual);
-            preconditioner.apply(&self.r, &mut self.z);
-            let rz_next = dot(&self.r, &self.z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            for (p, z) in self.p.iter_mut().zip(&self.z) {
-                *p = z + beta * *p;
-            }
         }
+    }
+}
+
+/// Move `report` out (for an error), leaving it with an empty history: no allocation.
+fn take_report(report: &mut Report) -> Report {
+    Report {
+        iterations: report.iterations,
+        residuals: std::mem::take(&mut report.residuals),
+        wall_time: report.wall_time,
+        stop: report.stop,
     }
 }

@@ -467,6 +467,12 @@ impl SparseCholesky {
         crate::forest_solve::ForestSolve::new(&self.symbolic, &self.factor)
     }
 
+    /// Whether an LLᵀ factor is held (the last factorisation was [`SparseCholesky::factorize`] and
+    /// succeeded).
+    pub fn has_llt_factor(&self) -> bool {
+        self.factored == Stored::Llt
+    }
+
     /// The stored values of the LLᵀ factor (faer's storage for the analysed pattern), or `None`
     /// without an LLᵀ factorisation.
     pub(crate) fn llt_values(&self) -> Option<&[f64]> {

@@ -64,7 +64,7 @@ pub use lbfgs::{
     Lbfgs, LbfgsError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY, LBFGS_MAX_ITERATIONS,
 };
 pub use newton::{
-    Convergence, IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams,
+    Convergence, FactorReuse, IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams,
     NewtonProblem, NewtonReport, Relaxation, RelaxationWork, DEFAULT_STEP_TOLERANCE,
     MAX_LINE_SEARCH_HALVINGS, MAX_PATCH_COVERS, MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
 };

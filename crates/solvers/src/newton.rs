@@ -21,11 +21,16 @@
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
 //! positive definite), the step −H⁻¹∇Φ shortened by halving (up to 40 times) until Φ falls by at
 //! least 1e-4 of what the linear model predicts (Armijo), until a step's size is at most
-//! [`DEFAULT_STEP_TOLERANCE`] ([`Convergence::StepSize`]; for backward Euler 1e-5 m/s). Nothing
-//! else: these defaults were chosen on a table of scenes (cloth-10 to cloth-160, beam-4, beam-8
+//! [`DEFAULT_STEP_TOLERANCE`] ([`Convergence::StepSize`]; for backward Euler 1e-5 m/s). These
+//! defaults were chosen on a table of scenes (cloth-10 to cloth-160, beam-4, beam-8
 //! and the eight hard cases; `benches/results/issue15-newton-default.md`), on
 //! which this plain Newton is as fast as or faster than every variant tried except on the crushed
-//! cloth.
+//! cloth. One addition, chosen on the same table with the contact scenes
+//! (`benches/results/bunny-drop-speed.md`): before factoring, a system is tried by up to 4
+//! iterations of CG preconditioned with the factor held from an earlier matrix, to a relative
+//! residual of 1e-6 ([`FactorReuse`]); where the matrix has hardly changed (free fall, rest, the
+//! last iterations of a solve) this replaces the factorisation: half the time of a dropped solid,
+//! the same answers, and no change on cloth.
 //!
 //! Opt-in, after every accepted step the problem may relax the iterate ([`NewtonProblem::relax`],
 //! [`Relaxation::BUCKLING`]): for backward Euler, Gauss–Seidel sweeps of per-vertex Newton
@@ -72,10 +77,11 @@ use std::time::{Duration, Instant};
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
+use crate::cg::{CgParams, ConjugateGradient};
 use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
-use crate::operator::dot;
+use crate::operator::{dot, Symmetric};
 use crate::params::{self, ParamError, HISTORY_RESERVE};
-use crate::report::StopReason;
+use crate::report::{Report, StopReason};
 
 /// The most steps of the shift (or blend weight) ladder from [`NewtonParams::initial_shift`] to
 /// [`NewtonParams::max_shift`]: the defaults take 16 (shift) and 34 (blend); a factor so close to 1
@@ -339,7 +345,7 @@ impl Relaxation {
     /// The settings of the elimination's inner [`Newton`] on a patch: tolerance
     /// [`Relaxation::region_tolerance`] (a solve raises it to the patch's round-off floor, never
     /// lowers it), [`Relaxation::region_iterations`] iterations, the relaxation
-    /// [`Relaxation::inner`], and the defaults otherwise. Valid whenever this relaxation is, with
+    /// [`Relaxation::inner`], no factor reuse, and the defaults otherwise. Valid whenever this relaxation is, with
     /// the elimination on ([`Relaxation::validate`] checks them).
     pub fn inner_params(&self) -> NewtonParams {
         NewtonParams {
@@ -347,6 +353,8 @@ impl Relaxation {
             tolerance: self.region_tolerance,
             max_iterations: self.region_iterations,
             relaxation: self.inner(),
+            // A patch's factor is small: a factorisation costs about what a CG iteration does.
+            factor_reuse: FactorReuse::OFF,
             ..NewtonParams::default()
         }
     }
@@ -486,6 +494,74 @@ pub struct NewtonParams {
     pub relaxation: Relaxation,
     /// Factorisation settings.
     pub cholesky: CholeskyParams,
+    /// Solving a Newton system by CG preconditioned with the factor held from an earlier
+    /// iteration, before factoring it. Default [`FactorReuse::DEFAULT`].
+    pub factor_reuse: FactorReuse,
+}
+
+/// Solving a Newton system H Δ = −∇Φ by conjugate gradients preconditioned with the factor held
+/// from an earlier Newton matrix (of this solve or of an earlier one on the same pattern), instead
+/// of factoring H. Where H has hardly changed since (a body in free fall or at rest, the last
+/// iterations of a solve), CG converges in one to a few iterations, each one solve with the held
+/// factor: far cheaper than a factorisation of a dense factor. CG gives up as soon as its residual
+/// falls behind the geometric rate that would reach [`FactorReuse::tolerance`] within
+/// [`FactorReuse::max_iterations`] (so a matrix far from the factor's costs one or two solves),
+/// or on a direction of non-positive curvature; the matrix is then factored as without reuse, and
+/// no reuse is tried until a Newton step is taken whole (the model holds again). Not used under
+/// [`IndefinitePolicy::NewtonIfDescent`], which needs each matrix's inertia.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FactorReuse {
+    /// CG iterations allowed before the matrix is factored after all; 0 turns reuse off.
+    pub max_iterations: usize,
+    /// The relative residual ‖H Δ + ∇Φ‖ / ‖∇Φ‖ at which CG's Δ is taken as the Newton step
+    /// (dimensionless, in (0, 1)).
+    pub tolerance: f64,
+}
+
+impl FactorReuse {
+    /// No reuse: every Newton iteration factors its matrix.
+    pub const OFF: FactorReuse = FactorReuse {
+        max_iterations: 0,
+        tolerance: 1e-6,
+    };
+
+    /// The default: up to 4 CG iterations to a relative residual of 1e-6.
+    pub const DEFAULT: FactorReuse = FactorReuse {
+        max_iterations: 4,
+        tolerance: 1e-6,
+    };
+
+    /// Whether reuse is on (`max_iterations` > 0).
+    pub fn is_on(&self) -> bool {
+        self.max_iterations > 0
+    }
+
+    /// Check the fields: `tolerance` in (0, 1); `max_iterations` at most
+    /// [`MAX_RELAXATION_COUNT`].
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::real(
+            "FactorReuse::tolerance",
+            self.tolerance,
+            self.tolerance > 0.0 && self.tolerance < 1.0,
+            "in (0, 1)",
+        )?;
+        params::count_in(
+            "FactorReuse::max_iterations",
+            self.max_iterations,
+            0,
+            MAX_RELAXATION_COUNT,
+            "at most 10000",
+        )
+    }
+}
+
+impl Default for FactorReuse {
+    fn default() -> Self {
+        FactorReuse::DEFAULT
+    }
 }
 
 /// The default tolerance of [`Convergence::StepSize`]: 1e-5 in the problem's step measure, for
@@ -545,8 +621,8 @@ impl NewtonParams {
     /// `max_iterations` ≥ 1; `armijo` in (0, 1); `max_halvings` at most
     /// [`MAX_LINE_SEARCH_HALVINGS`]; `initial_shift` finite and > 0; `shift_factor` and
     /// `blend_factor` finite and > 1; `max_shift` finite, ≥ `initial_shift`, and reached from it
-    /// within [`MAX_SHIFT_STEPS`] steps of either factor; and the nested [`Relaxation::validate`]
-    /// and [`CholeskyParams::validate`].
+    /// within [`MAX_SHIFT_STEPS`] steps of either factor; and the nested [`Relaxation::validate`],
+    /// [`FactorReuse::validate`] and [`CholeskyParams::validate`].
     ///
     /// # Errors
     /// [`ParamError`] naming the first field out of range.
@@ -602,6 +678,7 @@ impl NewtonParams {
             )?;
         }
         self.relaxation.validate()?;
+        self.factor_reuse.validate()?;
         self.cholesky.validate()
     }
 }
@@ -621,6 +698,7 @@ impl Default for NewtonParams {
             indefinite: IndefinitePolicy::ConvexBlend,
             relaxation: Relaxation::NONE,
             cholesky: CholeskyParams::default(),
+            factor_reuse: FactorReuse::DEFAULT,
         }
     }
 }
@@ -666,6 +744,13 @@ pub struct NewtonReport {
     pub failed_factorizations: usize,
     /// Numeric factorisations in all (accepted and failed attempts).
     pub factorizations: usize,
+    /// Iterations whose step was solved by CG with the factor held from an earlier matrix
+    /// ([`NewtonParams::factor_reuse`]) instead of a factorisation.
+    pub reused_factors: usize,
+    /// CG attempts on a held factor that did not converge (the matrix was then factored).
+    pub refused_reuses: usize,
+    /// CG iterations on held factors in all (each one solve with the factor), converged or not.
+    pub reuse_iterations: usize,
     /// Relaxation sweeps over all blocks, in all ([`NewtonParams::relaxation`]).
     pub relaxation_sweeps: usize,
     /// Relaxations skipped after a trusted exact Newton step ([`Relaxation::trusted_model`]).
@@ -715,6 +800,9 @@ impl NewtonReport {
             indefinite_steps: 0,
             failed_factorizations: 0,
             factorizations: 0,
+            reused_factors: 0,
+            refused_reuses: 0,
+            reuse_iterations: 0,
             relaxation_sweeps: 0,
             skipped_relaxations: 0,
             focused_sweeps: 0,
@@ -847,6 +935,10 @@ pub struct Newton {
     step: Vec<f64>,
     trial: Vec<f64>,
     shift: f64,
+    /// −∇Φ, the right-hand side of CG on a held factor.
+    rhs: Vec<f64>,
+    cg: ConjugateGradient,
+    cg_report: Report,
 }
 
 /// An accepted step: its length α and Φ(x + αΔ) − Φ(x).
@@ -894,6 +986,9 @@ impl Newton {
             step: vec![0.0; n],
             trial: vec![0.0; n],
             shift: 0.0,
+            rhs: vec![0.0; n],
+            cg: ConjugateGradient::new(CgParams::default()),
+            cg_report: Report::start(MAX_RELAXATION_COUNT),
             params,
         })
     }
@@ -949,6 +1044,69 @@ impl Newton {
         report.factor_time += self.cholesky.factor_time();
         report.factorizations += 1;
         factored
+    }
+
+    /// Solve the Newton system of the current shift (see [`Newton::regularize`]) into `step` by CG
+    /// preconditioned with the held LLᵀ factor ([`NewtonParams::factor_reuse`]), counting it in
+    /// `report`. `true` if CG converged; otherwise `step` is garbage and the matrix must be
+    /// factored.
+    fn solve_by_held_factor(
+        &mut self,
+        problem: &mut impl NewtonProblem,
+        x: &[f64],
+        policy: IndefinitePolicy,
+        report: &mut NewtonReport,
+    ) -> bool {
+        let reuse = self.params.factor_reuse;
+        if !self.cholesky.has_llt_factor() {
+            return false;
+        }
+        self.regularize(problem, x, policy);
+        for (b, g) in self.rhs.iter_mut().zip(&self.g) {
+            *b = -g;
+        }
+        self.step.fill(0.0);
+        self.cg.params = CgParams {
+            tolerance: reuse.tolerance,
+            max_iterations: reuse.max_iterations,
+        };
+        let matrix = Symmetric(SparseColMatRef::new(problem.pattern(), &self.shifted));
+        // Off the geometric track that reaches the tolerance within the allowed iterations: the
+        // matrix has moved too far from the factor's, and further solves with it would be wasted.
+        let track = |k: usize, residual: f64| {
+            residual > reuse.tolerance.powf(k as f64 / reuse.max_iterations as f64)
+        };
+        let solved = self.cg.solve_into(
+            &matrix,
+            &mut self.cholesky,
+            &self.rhs,
+            &mut self.step,
+            &mut self.cg_report,
+            track,
+        );
+        let (iterations, converged) = match solved {
+            Ok(()) => (
+                self.cg_report.iterations,
+                self.cg_report.stop.is_converged(),
+            ),
+            Err(e) => match e.into_report() {
+                // The history moved into the error: take it back, so that the next reuse
+                // allocates nothing.
+                Some(failed) => {
+                    let iterations = failed.iterations;
+                    self.cg_report = failed;
+                    (iterations, false)
+                }
+                None => (0, false),
+            },
+        };
+        report.reuse_iterations += iterations;
+        if converged {
+            report.reused_factors += 1;
+        } else {
+            report.refused_reuses += 1;
+        }
+        converged
     }
 
     /// Under [`IndefinitePolicy::ConvexBlend`], after the blend of the current weight failed to be
@@ -1170,6 +1328,10 @@ impl Newton {
             r.wall_time = start.elapsed();
         };
         let mut gradient = g0 * scale;
+        // Solve by the held factor, except after a refused attempt until the next full step (the
+        // matrix is moving away from the factor's, and a full step says the model holds again).
+        let reuse_on = p.factor_reuse.is_on() && p.indefinite != IndefinitePolicy::NewtonIfDescent;
+        let mut reuse = reuse_on;
         loop {
             if !(phi.is_finite() && gradient.is_finite()) {
                 finish(report, StopReason::NonFinite);
@@ -1205,10 +1367,20 @@ impl Newton {
             // The accepted step, the negative eigenvalues of its matrix, its slope gᵀΔ, and
             // whether it met the step-size criterion.
             let (accepted, negative, step_slope, small) = loop {
+                let mut reused = false;
                 let negative = if held_definite {
                     held_definite = false;
                     Some(0)
+                } else if reuse
+                    && failed == 0
+                    && self.solve_by_held_factor(problem, x, p.indefinite, report)
+                {
+                    reused = true;
+                    Some(0)
                 } else {
+                    if reuse && failed == 0 {
+                        reuse = false;
+                    }
                     match self.factor_at_shift(problem, x, p.indefinite, report) {
                         Ok(inertia) if inertia.is_positive_definite() => Some(0),
                         Ok(inertia) if p.indefinite == IndefinitePolicy::NewtonIfDescent => {
@@ -1223,11 +1395,13 @@ impl Newton {
                     }
                 };
                 if let Some(negative) = negative {
-                    // Δ = −(H + μD)⁻¹ g
-                    for (s, g) in self.step.iter_mut().zip(&self.g) {
-                        *s = -g;
+                    if !reused {
+                        // Δ = −(H + μD)⁻¹ g
+                        for (s, g) in self.step.iter_mut().zip(&self.g) {
+                            *s = -g;
+                        }
+                        self.cholesky.solve_slice(&mut self.step);
                     }
-                    self.cholesky.solve_slice(&mut self.step);
                     let slope = dot(&self.g, &self.step);
                     let size = problem.step_size(&self.step);
                     // Only a step of a matrix without the mass shift estimates the distance to
@@ -1250,6 +1424,11 @@ impl Newton {
                             finish(report, StopReason::Converged);
                             return Ok(());
                         }
+                        if reused {
+                            // Judge the matrix by its own factor before giving up.
+                            reuse = false;
+                            continue;
+                        }
                         if negative == 0 {
                             report.failed_factorizations += failed;
                             // A descent direction of a convex model on which no step lowers Φ:
@@ -1264,6 +1443,11 @@ impl Newton {
                             finish(report, StopReason::IterationLimit);
                             return Err(Failure::LineSearchFailed);
                         }
+                    }
+                    if reused {
+                        // An ascent direction from CG (only with rounding): factor instead.
+                        reuse = false;
+                        continue;
                     }
                 }
                 failed += 1;
@@ -1360,6 +1544,9 @@ impl Newton {
             // A full step means the model is trusted: relax the shift. A short one: stiffen it.
             // (Full and short relative to the longest step the problem allowed: a step cut short
             // by an obstacle says nothing about the model.)
+            if alpha == 1.0 {
+                reuse = reuse_on;
+            }
             if alpha == longest {
                 self.shift = self.lower_shift(p.indefinite);
             } else if alpha < 0.25 * longest {

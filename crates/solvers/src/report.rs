@@ -144,3 +144,16 @@ pub enum SolveError {
         block: usize,
     },
 }
+
+impl SolveError {
+    /// The report carried by the error, if it has one (every variant but
+    /// [`SolveError::InvalidParameter`] and [`SolveError::SingularBlock`]).
+    pub fn into_report(self) -> Option<Report> {
+        match self {
+            SolveError::NotPositiveDefinite { report, .. }
+            | SolveError::Diverged { report }
+            | SolveError::NonFinite { report } => Some(report),
+            SolveError::InvalidParameter(_) | SolveError::SingularBlock { .. } => None,
+        }
+    }
+}

@@ -339,9 +339,9 @@ fn solve_reference(
 // solution, and a changed Newton may pick another one, so it is bumped whenever Newton's default
 // changes (03: convex blend and relaxation; 04: focused relaxation sweeps; 05: no relaxation after trusted exact steps;
 // 06: nonlinear elimination of the hottest region; 07: the elimination over a fixed cover of
-// patches).
+// patches; 08: Newton systems solved on a held factor).
 
-const MAGIC: &[u8; 12] = b"HOOKEBENCH07";
+const MAGIC: &[u8; 12] = b"HOOKEBENCH08";
 
 /// FNV-1a, 64 bit.
 struct Fnv(u64);

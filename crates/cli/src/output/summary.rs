@@ -81,6 +81,10 @@ pub struct SolverSettingsRecord {
     /// Newton's relaxation preset: `none` or `buckling` (absent for other settings).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub relaxation: Option<String>,
+    /// Newton's factor reuse: CG iterations allowed on a held factor (0: off; absent for other
+    /// integrators).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor_reuse: Option<usize>,
 }
 
 /// What a step's `solver_residual` measures: Newton's relative gradient (unit `1`), projective

@@ -316,6 +316,7 @@ impl<const D: usize> BackwardEulerStep<D> {
         step.set_parallel(self.parallel);
         let params = NewtonParams {
             max_iterations: relaxation.region_iterations,
+            factor_reuse: relaxation.inner_params().factor_reuse,
             ..NewtonParams::default()
         };
         let newton = Newton::new(step.pattern(), params).ok()?;
