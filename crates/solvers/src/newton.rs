@@ -1373,12 +1373,13 @@ impl Newton {
                     Some(0)
                 } else if reuse
                     && failed == 0
+                    && self.shift == 0.0
                     && self.solve_by_held_factor(problem, x, p.indefinite, report)
                 {
                     reused = true;
                     Some(0)
                 } else {
-                    if reuse && failed == 0 {
+                    if reuse && failed == 0 && self.shift == 0.0 {
                         reuse = false;
                     }
                     match self.factor_at_shift(problem, x, p.indefinite, report) {
