@@ -9,7 +9,7 @@ use hooke_sim::{
 use nalgebra::Vector2;
 
 use crate::event::{Event, Key};
-use crate::params::{EditorParams, IntegratorChoice, MAX_SUBSTEPS};
+use crate::params::{EditorParams, IntegratorChoice, DASHPOT_FLOOR, DRAG_FLOOR, MAX_SUBSTEPS};
 use crate::EditorError;
 
 /// A 2D point or vector, m or m/s.
@@ -241,11 +241,11 @@ impl Editor {
                 self.stale = true;
             }
             Key::D => {
-                self.drag *= factor;
+                self.drag = stepped(self.drag, shift, DRAG_FLOOR);
                 self.stale = true;
             }
             Key::X => {
-                self.dashpot *= factor;
+                self.dashpot = stepped(self.dashpot, shift, DASHPOT_FLOOR);
                 self.stale = true;
             }
             Key::I => {
@@ -617,6 +617,23 @@ impl Editor {
     /// The library integrator behind the current choice.
     pub fn library_integrator(&self) -> Integrator {
         self.integrator.settings().integrator
+    }
+}
+
+/// A damping setting after one press of its key: ×1.1 (`down`: ÷1.1) above `floor`. A
+/// multiplication alone could never leave 0, so raising a value below `floor` sets `floor`, and
+/// lowering one that would fall below `floor` sets 0: from 0, one press up and one down return to
+/// exactly 0.
+fn stepped(value: f64, down: bool, floor: f64) -> f64 {
+    if down {
+        let lowered = value / 1.1;
+        if lowered < floor {
+            0.0
+        } else {
+            lowered
+        }
+    } else {
+        (value * 1.1).max(floor)
     }
 }
 

@@ -13,9 +13,10 @@ pub enum Key {
     C,
     /// Young's modulus ×1.1 (shift: ÷1.1).
     Y,
-    /// Drag ×1.1 (shift: ÷1.1).
+    /// Drag ×1.1 (shift: ÷1.1); from 0 it steps to [`crate::DRAG_FLOOR`], and below that to 0.
     D,
-    /// Dashpot ×1.1 (shift: ÷1.1).
+    /// Dashpot ×1.1 (shift: ÷1.1); from 0 it steps to [`crate::DASHPOT_FLOOR`], and below that
+    /// to 0.
     X,
     /// Next integrator (shift: previous).
     I,

@@ -41,7 +41,9 @@ pub use draw::{to_0rgb, Renderer, FRAME_SIZES, FULL_STRAIN};
 pub use editor::{Editor, FrameStats, ModelSpring, Outcome, Vec2};
 pub use error::EditorError;
 pub use event::{Event, Key};
-pub use params::{EditorParams, IntegratorChoice, MAX_PARTICLES, MAX_SUBSTEPS};
+pub use params::{
+    EditorParams, IntegratorChoice, DASHPOT_FLOOR, DRAG_FLOOR, MAX_PARTICLES, MAX_SUBSTEPS,
+};
 pub use replay::{Script, ScriptEvent, StateRecord, MAX_SCRIPT_FRAMES};
 
 use std::path::Path;

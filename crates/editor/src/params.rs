@@ -57,6 +57,13 @@ impl Default for EditorParams {
     }
 }
 
+/// The smallest drag rate other than 0 that the drag key sets, 1/s: raising 0 gives it, lowering
+/// below it gives 0 (velocities then lose 1 % a second; the default drag is 1/s).
+pub const DRAG_FLOOR: f64 = 0.01;
+/// The smallest dashpot coefficient other than 0 that the dashpot key sets, N·s/m: raising 0 gives
+/// it, lowering below it gives 0 (1 % of the default 100 N·s/m).
+pub const DASHPOT_FLOOR: f64 = 1.0;
+
 /// Most substeps per frame the `]` key reaches.
 pub const MAX_SUBSTEPS: usize = 1024;
 /// Largest particle budget [`EditorParams::validate`] accepts.
