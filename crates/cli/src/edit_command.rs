@@ -30,6 +30,10 @@ pub struct EditArgs {
     /// Where `s` saves the scene (window), or where a script's `s` saves it (replay).
     #[arg(long, value_name = "FILE.toml", default_value = "edited.toml")]
     pub save: PathBuf,
+    /// With the window: record the session's events to this file as an event script that
+    /// `--replay` reads (from the same FILE, or none), written every 300 frames and on closing.
+    #[arg(long, value_name = "EVENTS.json", conflicts_with = "replay")]
+    pub record: Option<PathBuf>,
 }
 
 /// What `hooke edit` can fail with.
@@ -84,6 +88,7 @@ pub fn run(args: &EditArgs) -> Result<(), EditError> {
             let settings = hooke_editor::window::WindowSettings {
                 size: args.size,
                 save_path: args.save.clone(),
+                record_path: args.record.clone(),
                 ..Default::default()
             };
             hooke_editor::window::run(&mut editor, &settings)?;

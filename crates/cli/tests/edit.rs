@@ -13,6 +13,7 @@ fn args(replay: PathBuf, frames: PathBuf) -> EditArgs {
         size: 128,
         state_out: None,
         save: PathBuf::from("unused.toml"),
+        record: None,
     }
 }
 

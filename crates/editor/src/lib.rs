@@ -33,6 +33,7 @@ mod event;
 mod params;
 mod replay;
 pub mod scene_file;
+mod session;
 mod setup;
 #[cfg(feature = "window")]
 pub mod window;
@@ -45,6 +46,7 @@ pub use params::{
     EditorParams, IntegratorChoice, DASHPOT_FLOOR, DRAG_FLOOR, MAX_PARTICLES, MAX_SUBSTEPS,
 };
 pub use replay::{Script, ScriptEvent, StateRecord, MAX_SCRIPT_FRAMES};
+pub use session::{FrameInput, Session, RECORD_EVERY_FRAMES};
 
 use std::path::Path;
 
