@@ -1,5 +1,6 @@
-//! `hooke edit`: seed 004's interactive 2D editor in a window, or replayed headless from an event
-//! script (`--replay EVENTS.json --frames DIR`), which is what tests and CI use.
+//! `hooke edit`: the interactive 2D editor in a window (`--record EVENTS.json` records the
+//! session), or replayed headless from an event script (`--replay EVENTS.json --frames DIR`),
+//! which is what tests and CI use. Keys and formats: docs/editor.md.
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +10,7 @@ use hooke_editor::{Editor, EditorError, EditorParams, Renderer, Script, StateRec
 #[derive(clap::Args, Debug)]
 pub struct EditArgs {
     /// A 2D scene file to open (as `hooke run` reads it; `s` in the editor saves one). Without it
-    /// the editor starts with seed 004's three particles.
+    /// the editor starts with three particles (docs/editor.md).
     pub file: Option<PathBuf>,
     /// Replay this event script headless instead of opening a window:
     /// {"frames": N, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5}, ..]}.

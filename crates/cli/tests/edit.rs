@@ -31,7 +31,7 @@ fn args(replay: PathBuf, frames: PathBuf) -> EditArgs {
 fn a_replay_writes_every_kth_frame_and_the_state() {
     let dir = tempfile::tempdir().unwrap();
     let script = dir.path().join("events.json");
-    // The issue's example, with a save at frame 20.
+    // The example script of docs/editor.md, with a save at frame 20.
     std::fs::write(
         &script,
         r#"{"frames": 100, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5, "shift": false},

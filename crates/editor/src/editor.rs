@@ -62,7 +62,7 @@ pub struct FrameStats {
 /// ```
 /// use hooke_editor::{Editor, EditorParams, Event};
 ///
-/// let mut editor = Editor::seed(EditorParams::default())?; // seed 004's three particles
+/// let mut editor = Editor::seed(EditorParams::default())?; // the default three particles
 /// editor.handle(Event::Click { x: 0.35, y: 0.45, shift: false, pin: false })?;
 /// assert_eq!(editor.particle_count(), 4);
 /// for _ in 0..100 {
@@ -133,7 +133,7 @@ impl Editor {
         })
     }
 
-    /// Seed 004's start: particles at (0.3, 0.3), (0.3, 0.4), (0.4, 0.4), added as clicks.
+    /// The default start: particles at (0.3, 0.3), (0.3, 0.4), (0.4, 0.4), added as clicks.
     ///
     /// # Errors
     /// As [`Editor::new`].
@@ -299,7 +299,7 @@ impl Editor {
         best
     }
 
-    /// Seed 004's `new_particle`: joined to every particle closer than the connection radius, with
+    /// A new particle, joined to every particle closer than the connection radius, with
     /// the rest length of the parameters. O(particles) per click.
     fn add_particle(&mut self, at: Vec2, pinned: bool) {
         if self.positions.len() >= self.params.max_particles {
@@ -385,7 +385,7 @@ impl Editor {
         self.params.frame_time / self.substeps as f64
     }
 
-    /// Simulate one frame (unless paused): the right-button pull (seed 004's impulse
+    /// Simulate one frame (unless paused): the right-button pull (the impulse
     /// v ← v − T s (x − p) on every free particle, T the frame time), the dragged particle held at
     /// the cursor, then `substeps` steps of the chosen integrator with gravity, drag, dashpot and
     /// the unit box walls. With no spring at all, free particles fall ballistically by symplectic

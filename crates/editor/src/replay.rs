@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use crate::event::{EventFields, FieldError};
 use crate::{Editor, EditorError, Event};
 
-/// Most frames a script may ask for (10,000 s of simulated time at the seed's frame).
+/// Most frames a script may ask for (10,000 s of simulated time at the default 10 ms frame).
 pub const MAX_SCRIPT_FRAMES: usize = 1_000_000;
 
 /// One event of a script and the frame before whose simulation it is handled. As JSON, the

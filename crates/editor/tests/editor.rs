@@ -48,7 +48,7 @@ fn inside_and_finite(editor: &Editor) -> Result<(), String> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
     /// A click joins the new particle to exactly the particles closer than the connection radius
-    /// (brute force over every earlier particle), each spring with the seed's rest length.
+    /// (brute force over every earlier particle), each spring with the default rest length.
     #[test]
     fn a_click_joins_exactly_the_particles_within_the_radius(
         points in prop::collection::vec((0.0..=1.0f64, 0.0..=1.0f64), 1..40),
