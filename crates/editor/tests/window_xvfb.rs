@@ -178,7 +178,6 @@ fn the_window_shows_a_clicked_particle() {
             record_path: Some(record_path),
             max_frames: Some(3000),
             target_fps: 30,
-            ..WindowSettings::default()
         };
         let shown = run(&mut editor, &settings).expect("the window runs under Xvfb");
         (editor, shown)
