@@ -1,6 +1,6 @@
 //! One editing session's frames as the window runs them, without the window: what the window read
-//! from the mouse and keyboard ([`FrameInput`]) becomes [`Event`]s, which the editor handles (a
-//! save request writes the scene), a recording keeps, and one [`Editor::advance`] follows. The
+//! from the mouse and keyboard ([`FrameInput`]) becomes [`Event`]s, which the editor handles and a
+//! recording keeps; one [`Editor::advance`] follows (then the save the save key asked for). The
 //! window only polls its devices and draws, so a test drives this same code with made-up input.
 //!
 //! A recording is a [`Script`] (docs/editor.md): each event under the index of the frame it was
@@ -194,23 +194,19 @@ impl Session {
         events
     }
 
-    /// One frame: the events of `input` handled in order (a save request writes the scene to the
-    /// save path and shows the outcome as a notice), recorded, then one [`Editor::advance`], and
-    /// the recording written if it is due.
+    /// One frame: the events of `input` handled in order and recorded, one [`Editor::advance`],
+    /// then, if the save key was pressed, the scene written to the save path (its outcome shown as
+    /// a notice), and the recording written if it is due. The save follows the frame, as in
+    /// [`Script::replay`], so that a replayed recording saves the same file.
     pub fn frame(&mut self, editor: &mut Editor, input: &FrameInput) {
+        let mut save = false;
         for event in self.events(input) {
             // Only events the editor took are recorded: a replay would stop at a refused one.
             // Events made from window input lie inside the box, so none is refused.
             let Ok(outcome) = editor.handle(event) else {
                 continue;
             };
-            if outcome == Outcome::SaveRequested {
-                let notice = match editor.save_scene(&self.save_path) {
-                    Ok(()) => format!("saved {}", self.save_path.display()),
-                    Err(e) => format!("not saved: {e}"),
-                };
-                editor.set_notice(notice);
-            }
+            save |= outcome == Outcome::SaveRequested;
             if let Some(recorder) = self.recorder.as_mut().filter(|r| !r.full()) {
                 recorder.script.events.push(ScriptEvent {
                     frame: recorder.script.frames,
@@ -220,6 +216,13 @@ impl Session {
         }
         editor.advance();
         self.frames += 1;
+        if save {
+            let notice = match editor.save_scene(&self.save_path) {
+                Ok(()) => format!("saved {}", self.save_path.display()),
+                Err(e) => format!("not saved: {e}"),
+            };
+            editor.set_notice(notice);
+        }
         let Some(recorder) = self.recorder.as_mut() else {
             return;
         };

@@ -87,8 +87,8 @@ fn read_input(window: &Window) -> FrameInput {
 /// Run `editor` in a window until it is closed, Escape is pressed, or `settings.max_frames` frames
 /// have been shown. Returns the number of frames shown. Each frame is a [`Session::frame`] of what
 /// the mouse and keyboard say (events, one [`Editor::advance`]), then the drawing, with the last
-/// frame's wall time (advance + draw) in the overlay. Saving (`s`) writes `settings.save_path`;
-/// its outcome is shown as a notice. With `settings.record_path` the session's events are recorded
+/// frame's wall time (advance + draw) in the overlay. Saving (`s`) writes `settings.save_path`
+/// at the end of that frame; its outcome is shown as a notice. With `settings.record_path` the session's events are recorded
 /// there, and written however the loop ends (closed, Escape, the frame limit, or a window error).
 ///
 /// # Errors

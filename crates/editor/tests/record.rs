@@ -367,13 +367,23 @@ fn a_recorded_session_replays_to_the_same_state_bit_for_bit() {
     }
     let mut replayed = Editor::seed(params).unwrap();
     let mut saves = 0;
+    let replay_dir = tempfile::tempdir().unwrap();
+    let replay_saved = replay_dir.path().join("saved.toml");
     script
-        .replay(&mut replayed, |_, _, save| {
-            saves += usize::from(save);
+        .replay(&mut replayed, |_, editor, save| {
+            if save {
+                saves += 1;
+                editor.save_scene(&replay_saved)?;
+            }
             Ok(())
         })
         .unwrap();
     assert_eq!(saves, 1);
+    // The save key wrote the same scene in the session and in the replay.
+    assert_eq!(
+        std::fs::read_to_string(&replay_saved).unwrap(),
+        std::fs::read_to_string(dir.path().join("saved.toml")).unwrap()
+    );
     assert_eq!(state(&replayed), state(&editor));
     assert_eq!(StateRecord::of(&replayed), StateRecord::of(&editor));
     // The comparison sees one ulp: the pull's target moved by that gives another state.
