@@ -47,7 +47,8 @@ enum Command {
     Run(RunArgs),
     /// Speed against error: time solvers on one backward Euler step and measure their errors.
     Bench(crate::bench::BenchArgs),
-    /// Seed 004's interactive 2D editor, in a window or replayed headless from an event script.
+    /// The interactive 2D mass-spring editor, in a window (which can record the session) or
+    /// replayed headless from an event script (docs/editor.md).
     Edit(crate::edit_command::EditArgs),
     /// Tetrahedral meshes: fill a closed surface (tetrahedralize), report a mesh's quality.
     Mesh(crate::mesh_command::MeshArgs),

@@ -1,5 +1,6 @@
-//! `hooke edit`: seed 004's interactive 2D editor in a window, or replayed headless from an event
-//! script (`--replay EVENTS.json --frames DIR`), which is what tests and CI use.
+//! `hooke edit`: the interactive 2D editor in a window (`--record EVENTS.json` records the
+//! session), or replayed headless from an event script (`--replay EVENTS.json --frames DIR`),
+//! which is what tests and CI use. Keys and formats: docs/editor.md.
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +10,7 @@ use hooke_editor::{Editor, EditorError, EditorParams, Renderer, Script, StateRec
 #[derive(clap::Args, Debug)]
 pub struct EditArgs {
     /// A 2D scene file to open (as `hooke run` reads it; `s` in the editor saves one). Without it
-    /// the editor starts with seed 004's three particles.
+    /// the editor starts with three particles (docs/editor.md).
     pub file: Option<PathBuf>,
     /// Replay this event script headless instead of opening a window:
     /// {"frames": N, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5}, ..]}.
@@ -30,6 +31,10 @@ pub struct EditArgs {
     /// Where `s` saves the scene (window), or where a script's `s` saves it (replay).
     #[arg(long, value_name = "FILE.toml", default_value = "edited.toml")]
     pub save: PathBuf,
+    /// With the window: record the session's events to this file as an event script that
+    /// `--replay` reads (from the same FILE, or none), written every 300 frames and on closing.
+    #[arg(long, value_name = "EVENTS.json", conflicts_with = "replay")]
+    pub record: Option<PathBuf>,
 }
 
 /// What `hooke edit` can fail with.
@@ -84,6 +89,7 @@ pub fn run(args: &EditArgs) -> Result<(), EditError> {
             let settings = hooke_editor::window::WindowSettings {
                 size: args.size,
                 save_path: args.save.clone(),
+                record_path: args.record.clone(),
                 ..Default::default()
             };
             hooke_editor::window::run(&mut editor, &settings)?;

@@ -3,8 +3,8 @@
 //! Two models of 1,000 particles, both built by the editor's own click rule:
 //! - `net-1000`: a 40 × 25 net of spacing 0.02 m, clicks joined within 0.021 m (its four lattice
 //!   neighbours, 1,935 springs) at rest length 0.02 m, the top corners pinned: the sparse case,
-//!   inside symplectic Euler's stability bound at the seed's 1 ms substep (k = Y/l = 5e4 N/m);
-//! - `dense-1000`: 1,000 clicks on a 32 × 32 grid over the box with the seed's rule (0.15 m,
+//!   inside symplectic Euler's stability bound at the default 1 ms substep (k = Y/l = 5e4 N/m);
+//! - `dense-1000`: 1,000 clicks on a 32 × 32 grid over the box with the editor's rule (0.15 m,
 //!   rest 0.1 m): about 70 neighbours each, ~32,000 springs. Symplectic and forward Euler refuse
 //!   it (far past their stability bound); the implicit integrators run it.
 //!

@@ -16,7 +16,7 @@ use crate::{Editor, EditorError};
 static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
 
 /// Spring colours by strain: `STRAIN_BUCKETS` buckets from compressed (blue) through rest (dark
-/// grey, the seed's 0x444444) to stretched (red), saturating at |strain| = [`FULL_STRAIN`].
+/// grey, 0x444444) to stretched (red), saturating at |strain| = [`FULL_STRAIN`].
 const STRAIN_BUCKETS: usize = 9;
 /// The strain |r|/l − 1 drawn with the full colour.
 pub const FULL_STRAIN: f64 = 0.25;
@@ -62,7 +62,7 @@ fn bucket_colour(b: usize) -> Color {
     Color::from_rgba8(c(0), c(1), c(2), 255)
 }
 
-/// The colour of a free particle (seed 004's 0x111111).
+/// The colour of a free particle (0x111111).
 const FREE_PARTICLE: u32 = 0x111111;
 
 /// How far (pixels) along a spring of half-width `half_width` from a particle's centre the particle's
@@ -180,7 +180,7 @@ impl Renderer {
                 self.buckets[b] = path.clear();
             }
         }
-        // Particles: free dark, stamped; pinned red with a ring (seed: 0x111111 and 0xFF0000,
+        // Particles: free dark, stamped; pinned red with a ring (0x111111 and 0xFF0000,
         // radius 5).
         let mut pinned = std::mem::take(&mut self.pinned_path);
         // Stamped in order; the pinned discs go on top, as one path.

@@ -9,7 +9,7 @@ use hooke_sim::{
 use nalgebra::Vector2;
 
 use crate::event::{Event, Key};
-use crate::params::{EditorParams, IntegratorChoice, MAX_SUBSTEPS};
+use crate::params::{EditorParams, IntegratorChoice, DASHPOT_FLOOR, DRAG_FLOOR, MAX_SUBSTEPS};
 use crate::EditorError;
 
 /// A 2D point or vector, m or m/s.
@@ -62,7 +62,7 @@ pub struct FrameStats {
 /// ```
 /// use hooke_editor::{Editor, EditorParams, Event};
 ///
-/// let mut editor = Editor::seed(EditorParams::default())?; // seed 004's three particles
+/// let mut editor = Editor::seed(EditorParams::default())?; // the default three particles
 /// editor.handle(Event::Click { x: 0.35, y: 0.45, shift: false, pin: false })?;
 /// assert_eq!(editor.particle_count(), 4);
 /// for _ in 0..100 {
@@ -133,7 +133,7 @@ impl Editor {
         })
     }
 
-    /// Seed 004's start: particles at (0.3, 0.3), (0.3, 0.4), (0.4, 0.4), added as clicks.
+    /// The default start: particles at (0.3, 0.3), (0.3, 0.4), (0.4, 0.4), added as clicks.
     ///
     /// # Errors
     /// As [`Editor::new`].
@@ -241,11 +241,11 @@ impl Editor {
                 self.stale = true;
             }
             Key::D => {
-                self.drag *= factor;
+                self.drag = stepped(self.drag, shift, DRAG_FLOOR);
                 self.stale = true;
             }
             Key::X => {
-                self.dashpot *= factor;
+                self.dashpot = stepped(self.dashpot, shift, DASHPOT_FLOOR);
                 self.stale = true;
             }
             Key::I => {
@@ -299,7 +299,7 @@ impl Editor {
         best
     }
 
-    /// Seed 004's `new_particle`: joined to every particle closer than the connection radius, with
+    /// A new particle, joined to every particle closer than the connection radius, with
     /// the rest length of the parameters. O(particles) per click.
     fn add_particle(&mut self, at: Vec2, pinned: bool) {
         if self.positions.len() >= self.params.max_particles {
@@ -385,7 +385,7 @@ impl Editor {
         self.params.frame_time / self.substeps as f64
     }
 
-    /// Simulate one frame (unless paused): the right-button pull (seed 004's impulse
+    /// Simulate one frame (unless paused): the right-button pull (the impulse
     /// v ← v − T s (x − p) on every free particle, T the frame time), the dragged particle held at
     /// the cursor, then `substeps` steps of the chosen integrator with gravity, drag, dashpot and
     /// the unit box walls. With no spring at all, free particles fall ballistically by symplectic
@@ -617,6 +617,23 @@ impl Editor {
     /// The library integrator behind the current choice.
     pub fn library_integrator(&self) -> Integrator {
         self.integrator.settings().integrator
+    }
+}
+
+/// A damping setting after one press of its key: ×1.1 (`down`: ÷1.1) above `floor`. A
+/// multiplication alone could never leave 0, so raising a value below `floor` sets `floor`, and
+/// lowering one that would fall below `floor` sets 0: from 0, one press up and one down return to
+/// exactly 0.
+fn stepped(value: f64, down: bool, floor: f64) -> f64 {
+    if down {
+        let lowered = value / 1.1;
+        if lowered < floor {
+            0.0
+        } else {
+            lowered
+        }
+    } else {
+        (value * 1.1).max(floor)
     }
 }
 

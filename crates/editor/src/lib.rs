@@ -1,6 +1,6 @@
 //! # hooke-editor
 //!
-//! The interactive 2D mass-spring editor of seed 004 (SPEC §7; SCENES.md seed-2d) as a
+//! The interactive 2D mass-spring editor (docs/editor.md: keys, event and state formats) as a
 //! deterministic state machine, drawn into a pixel buffer, shown in a window or replayed headless.
 //!
 //! - [`Editor`]: the model (particles, pins, springs, Young's modulus, drag, dashpot, integrator)
@@ -10,7 +10,10 @@
 //! - [`Renderer`]: draws an editor with tiny-skia (walls, springs coloured by strain, particles,
 //!   pinned ones marked, a text overlay) and writes PNG frames.
 //! - [`Script`]: a recorded event script (`EVENTS.json`) and its headless replay; [`StateRecord`]
-//!   is what `--state-out` writes.
+//!   is what `--state-out` writes. Both, and [`Event`], refuse unknown fields.
+//! - [`Session`]: the window's frames without the window (mouse and keys to events, the save key,
+//!   a recording of the events as a [`Script`], one advance), so that what the window does is
+//!   tested headless.
 //! - `window` (cargo feature `window`): the minifb window that feeds the editor its events.
 //!
 //! ```
@@ -33,6 +36,7 @@ mod event;
 mod params;
 mod replay;
 pub mod scene_file;
+mod session;
 mod setup;
 #[cfg(feature = "window")]
 pub mod window;
@@ -41,8 +45,11 @@ pub use draw::{to_0rgb, Renderer, FRAME_SIZES, FULL_STRAIN};
 pub use editor::{Editor, FrameStats, ModelSpring, Outcome, Vec2};
 pub use error::EditorError;
 pub use event::{Event, Key};
-pub use params::{EditorParams, IntegratorChoice, MAX_PARTICLES, MAX_SUBSTEPS};
+pub use params::{
+    EditorParams, IntegratorChoice, DASHPOT_FLOOR, DRAG_FLOOR, MAX_PARTICLES, MAX_SUBSTEPS,
+};
 pub use replay::{Script, ScriptEvent, StateRecord, MAX_SCRIPT_FRAMES};
+pub use session::{FrameInput, Session, RECORD_EVERY_FRAMES};
 
 use std::path::Path;
 

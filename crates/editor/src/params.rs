@@ -1,4 +1,4 @@
-//! The editor's fixed parameters (seed 004's constants, SCENES.md's seed-2d) and the integrators
+//! The editor's fixed parameters (their defaults in docs/editor.md) and the integrators
 //! it offers.
 
 use hooke_sim::{Integrator, LinearSolver, Settings};
@@ -6,35 +6,35 @@ use serde::{Deserialize, Serialize};
 
 use crate::EditorError;
 
-/// Constants of the editor that do not change while it runs. Defaults are seed 004's (SCENES.md
-/// seed-2d); [`EditorParams::validate`] checks every field where it enters.
+/// Constants of the editor that do not change while it runs; [`EditorParams::validate`] checks
+/// every field where it enters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EditorParams {
-    /// Simulated time of one frame, s (seed: 10 substeps of 1e-3 s).
+    /// Simulated time of one frame, s (default: 10 substeps of 1e-3 s).
     pub frame_time: f64,
-    /// Substeps per frame at the start (every integrator steps frame_time / substeps; seed: 10).
+    /// Substeps per frame at the start (every integrator steps frame_time / substeps; default: 10).
     pub substeps: usize,
-    /// Mass of every particle, kg (seed: 1).
+    /// Mass of every particle, kg (default: 1).
     pub particle_mass: f64,
-    /// Gravity, m/s², pointing down (seed: 9.8).
+    /// Gravity, m/s², pointing down (default: 9.8).
     pub gravity: f64,
-    /// A new particle is joined to every particle closer than this, m (seed: 0.15).
+    /// A new particle is joined to every particle closer than this, m (default: 0.15).
     pub connection_radius: f64,
-    /// Rest length of a new spring, m (seed: 0.1).
+    /// Rest length of a new spring, m (default: 0.1).
     pub rest_length: f64,
     /// Young's modulus Y at the start, N: a spring of rest length l has stiffness k = Y / l
-    /// (the seed's force −Y(|r|/l − 1) r̂; seed: 1000).
+    /// (the force −Y(|r|/l − 1) r̂; default: 1000).
     pub young: f64,
-    /// Drag rate at the start, 1/s: v ← v e^(−h c) (seed: 1).
+    /// Drag rate at the start, 1/s: v ← v e^(−h c) (default: 1).
     pub drag: f64,
-    /// Dashpot coefficient along springs at the start, N·s/m (seed: 100).
+    /// Dashpot coefficient along springs at the start, N·s/m (default: 100).
     pub dashpot: f64,
     /// Strength s of the right-button pull, 1/s²: each frame every free particle's velocity
-    /// changes by −T s (x − p), T the frame time (seed 004's impulse; seed: 100).
+    /// changes by −T s (x − p), T the frame time (default: 100).
     pub attractor_strength: f64,
     /// A click within this distance of a particle picks it (pin toggle, drag), m.
     pub pick_radius: f64,
-    /// Most particles the editor holds (seed: 1024); a click beyond is refused with a notice.
+    /// Most particles the editor holds (default: 1024); a click beyond is refused with a notice.
     pub max_particles: usize,
 }
 
@@ -56,6 +56,13 @@ impl Default for EditorParams {
         }
     }
 }
+
+/// The smallest drag rate other than 0 that the drag key sets, 1/s: raising 0 gives it, lowering
+/// below it gives 0 (velocities then lose 1 % a second; the default drag is 1/s).
+pub const DRAG_FLOOR: f64 = 0.01;
+/// The smallest dashpot coefficient other than 0 that the dashpot key sets, N·s/m: raising 0 gives
+/// it, lowering below it gives 0 (1 % of the default 100 N·s/m).
+pub const DASHPOT_FLOOR: f64 = 1.0;
 
 /// Most substeps per frame the `]` key reaches.
 pub const MAX_SUBSTEPS: usize = 1024;
@@ -126,7 +133,7 @@ impl EditorParams {
 #[serde(rename_all = "kebab-case")]
 #[non_exhaustive]
 pub enum IntegratorChoice {
-    /// Symplectic Euler, seed 004's integrator.
+    /// Symplectic Euler, the default.
     SymplecticEuler,
     /// Forward Euler (gains energy; refused above its growth bound).
     ExplicitEuler,

@@ -2,13 +2,17 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::event::{EventFields, FieldError};
 use crate::{Editor, EditorError, Event};
 
-/// Most frames a script may ask for (10,000 s of simulated time at the seed's frame).
+/// Most frames a script may ask for (10,000 s of simulated time at the default 10 ms frame).
 pub const MAX_SCRIPT_FRAMES: usize = 1_000_000;
 
-/// One event of a script and the frame before whose simulation it is handled.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+/// One event of a script and the frame before whose simulation it is handled. As JSON, the
+/// event's fields with `frame` beside them: `{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5}`;
+/// any other field is refused, naming it (see [`Event`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "EventFields")]
 pub struct ScriptEvent {
     /// Frame index, 0-based, below [`Script::frames`].
     pub frame: usize,
@@ -17,9 +21,22 @@ pub struct ScriptEvent {
     pub event: Event,
 }
 
+impl TryFrom<EventFields> for ScriptEvent {
+    type Error = FieldError;
+
+    fn try_from(fields: EventFields) -> Result<Self, FieldError> {
+        let event = fields.event()?;
+        let frame = fields
+            .frame
+            .ok_or_else(|| FieldError("missing field `frame` for a script's event".into()))?;
+        Ok(ScriptEvent { frame, event })
+    }
+}
+
 /// An event script: `{"frames": 300, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y":
-/// 0.5, "shift": false}, …]}`, coordinates in the unit box (y up).
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+/// 0.5, "shift": false}, …]}`, coordinates in the unit box (y up); the format is in
+/// docs/editor.md. Unknown fields are refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Script {
     /// Frames to simulate.
@@ -54,6 +71,25 @@ impl Script {
         Ok(self)
     }
 
+    /// The script as JSON in the form it is read, one event a line so that a recording reads and
+    /// edits easily. Numbers are written in the shortest form that reads back to the same f64.
+    ///
+    /// # Errors
+    /// The encoder's, which the editor's own event types do not produce.
+    pub(crate) fn to_json(&self) -> Result<String, serde_json::Error> {
+        let mut text = format!("{{\"frames\": {}, \"events\": [", self.frames);
+        for (k, event) in self.events.iter().enumerate() {
+            text.push_str(if k == 0 { "\n  " } else { ",\n  " });
+            text.push_str(&serde_json::to_string(event)?);
+        }
+        text.push_str(if self.events.is_empty() {
+            "]}\n"
+        } else {
+            "\n]}\n"
+        });
+        Ok(text)
+    }
+
     /// Replay on `editor`: for each frame, handle its events, [`Editor::advance`], then call
     /// `after_frame(frame, editor, save_requested)`. The callback may fail (writing a frame), which
     /// stops the replay.
@@ -80,8 +116,10 @@ impl Script {
     }
 }
 
-/// The editor's state as `--state-out STATE.json` writes it.
+/// The editor's state as `--state-out STATE.json` writes it (read back, unknown fields are
+/// refused).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct StateRecord {
     /// [[x, y], …], m.
     pub particles: Vec<[f64; 2]>,

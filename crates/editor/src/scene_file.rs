@@ -70,7 +70,7 @@ struct Run {
     steps: usize,
 }
 
-/// Frames a saved scene runs for under `hooke run` (seed-2d's 300 frames, 3 s).
+/// Frames a saved scene runs for under `hooke run` (300 frames, 3 s at the default frame).
 pub const SAVED_FRAMES: usize = 300;
 
 impl Editor {

@@ -1,7 +1,9 @@
 //! The editor's behaviour: event handling, pins, clearing, every integrator on a recorded script,
 //! failures that pause instead of panicking, and save/open round trips.
 
-use hooke_editor::{Editor, EditorParams, Event, IntegratorChoice, Key, Script, Vec2};
+use hooke_editor::{
+    Editor, EditorParams, Event, IntegratorChoice, Key, Script, Vec2, DASHPOT_FLOOR, DRAG_FLOOR,
+};
 use proptest::prelude::*;
 
 fn click(x: f64, y: f64) -> Event {
@@ -46,7 +48,7 @@ fn inside_and_finite(editor: &Editor) -> Result<(), String> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
     /// A click joins the new particle to exactly the particles closer than the connection radius
-    /// (brute force over every earlier particle), each spring with the seed's rest length.
+    /// (brute force over every earlier particle), each spring with the default rest length.
     #[test]
     fn a_click_joins_exactly_the_particles_within_the_radius(
         points in prop::collection::vec((0.0..=1.0f64, 0.0..=1.0f64), 1..40),
@@ -185,6 +187,57 @@ fn keys_change_the_settings_by_ten_per_cent() {
     let before = editor.positions().to_vec();
     editor.advance();
     assert_eq!(editor.positions(), &before[..], "paused: nothing moves");
+}
+
+/// Drag and dashpot start from 0 (a scene without damping, or lowered to 0): the key raises them
+/// to their floor, then by ten per cent; lowering below the floor gives 0 again.
+#[test]
+fn drag_and_dashpot_step_up_from_zero_and_back_to_zero() {
+    let params = EditorParams {
+        drag: 0.0,
+        dashpot: 0.0,
+        ..EditorParams::default()
+    };
+    let mut editor = Editor::seed(params).unwrap();
+    let shifted = |key| Event::Key { key, shift: true };
+    editor.handle(key(Key::D)).unwrap();
+    editor.handle(key(Key::X)).unwrap();
+    assert_eq!(
+        (editor.drag(), editor.dashpot()),
+        (DRAG_FLOOR, DASHPOT_FLOOR)
+    );
+    editor.handle(key(Key::D)).unwrap();
+    editor.handle(key(Key::X)).unwrap();
+    assert_eq!(editor.drag(), DRAG_FLOOR * 1.1);
+    assert_eq!(editor.dashpot(), DASHPOT_FLOOR * 1.1);
+    for _ in 0..2 {
+        editor.handle(shifted(Key::D)).unwrap();
+        editor.handle(shifted(Key::X)).unwrap();
+    }
+    assert_eq!((editor.drag(), editor.dashpot()), (0.0, 0.0));
+    // Lowering 0 keeps 0; the editor runs undamped and damped without failing.
+    editor.handle(shifted(Key::D)).unwrap();
+    assert_eq!(editor.drag(), 0.0);
+    for _ in 0..20 {
+        editor.advance();
+    }
+    editor.handle(key(Key::D)).unwrap();
+    editor.handle(key(Key::X)).unwrap();
+    for _ in 0..20 {
+        editor.advance();
+    }
+    assert!(editor.failure().is_none(), "{:?}", editor.failure());
+    // From the default 1/s, 49 presses down reach 0 (1.1^-48 > 0.01 > 1.1^-49).
+    let mut editor = Editor::seed(EditorParams::default()).unwrap();
+    for press in 1..=49 {
+        editor.handle(shifted(Key::D)).unwrap();
+        assert_eq!(
+            editor.drag() == 0.0,
+            press == 49,
+            "press {press}: {}",
+            editor.drag()
+        );
+    }
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! The real window under a virtual X server: Xvfb is started on a free display, the editor's
 //! minifb window opens on it, XTest presses space (pause) and clicks, and the frame is read back
-//! from the X server with XGetImage: the new particle is drawn where the click was.
+//! from the X server with XGetImage: the new particle is drawn where the click was. The session is
+//! recorded (`record_path`), and the recording replays to the editor's final state.
 //!
 //! Needs the `window` feature (on in `cargo test --workspace`, through hooke-cli) and the `Xvfb`
 //! program. Without Xvfb the test says so and passes, unless `HOOKE_REQUIRE_XVFB` is set, as
@@ -12,7 +13,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use hooke_editor::window::{run, WindowSettings};
-use hooke_editor::{Editor, EditorParams};
+use hooke_editor::{Editor, EditorParams, Script};
 use x11_dl::{keysym, xlib, xtest};
 
 const SIZE: u32 = 256;
@@ -165,13 +166,18 @@ fn the_window_shows_a_clicked_particle() {
     }
     let (_server, display) = start_server();
     std::env::set_var("DISPLAY", &display);
-    let window = std::thread::spawn(|| {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = dir.path().join("events.json");
+    let record_path = recording.clone();
+    let save_path = dir.path().join("edited.toml");
+    let window = std::thread::spawn(move || {
         let mut editor = Editor::new(EditorParams::default()).unwrap();
         let settings = WindowSettings {
             size: SIZE,
+            save_path,
+            record_path: Some(record_path),
             max_frames: Some(3000),
             target_fps: 30,
-            ..WindowSettings::default()
         };
         let shown = run(&mut editor, &settings).expect("the window runs under Xvfb");
         (editor, shown)
@@ -180,6 +186,8 @@ fn the_window_shows_a_clicked_particle() {
     // The background (0xDDDDDD) in the lower half, below the overlay: the window is up.
     let (x, y) = (SIZE as i32 / 4, 3 * SIZE as i32 / 4);
     client.wait_for("the window's first frame", |c| c.pixel(x, y) == 0xDDDDDD);
+    // The recording is written while the window runs, not only when it closes.
+    client.wait_for("the recording's first write", |_| recording.exists());
     client.key(keysym::XK_space);
     client.click(x, y);
     client.wait_for("the clicked particle to be drawn", |c| dark(c.pixel(x, y)));
@@ -192,4 +200,21 @@ fn the_window_shows_a_clicked_particle() {
     // The click's pixel centre maps to (x + ½)/256 or x/256: within one pixel.
     assert!((p.x - 0.25).abs() <= 1.0 / SIZE as f64, "{p:?}");
     assert!((p.y - 0.25).abs() <= 1.0 / SIZE as f64, "{p:?}");
+    // What the window received replays, headless, to the same state.
+    let text = std::fs::read_to_string(&recording).unwrap();
+    let script = serde_json::from_str::<Script>(&text)
+        .unwrap()
+        .validated()
+        .unwrap();
+    assert_eq!(
+        script.frames as u64, shown,
+        "one recorded frame per frame shown"
+    );
+    let mut replayed = Editor::new(EditorParams::default()).unwrap();
+    script.replay(&mut replayed, |_, _, _| Ok(())).unwrap();
+    assert_eq!(replayed.positions(), editor.positions(), "{text}");
+    assert_eq!(replayed.velocities(), editor.velocities());
+    assert_eq!(replayed.is_paused(), editor.is_paused());
+    assert_eq!(replayed.frames(), editor.frames());
+    assert_eq!(replayed.cursor(), editor.cursor());
 }
