@@ -19,9 +19,10 @@
 //! - contact: for Newton, Newton-CG and L-BFGS part of Φ (a barrier per free vertex and obstacle,
 //!   and friction lagged at x_n: [`BackwardEulerStep::set_contact`], docs/contact.md), with a
 //!   start x⁰ on the way from x_n to y that keeps every vertex outside and line searches that never
-//!   cross an obstacle; projective dynamics does not model it here: the simulation projects the
-//!   whole mesh after its step (the `contact` module), so the scene given to it has its contacts
-//!   taken out;
+//!   cross an obstacle; for projective dynamics and Chebyshev PD collision constraints in their
+//!   iterations ([`hooke_solvers::ProjectiveDynamics::set_contact`], every iterate kept outside
+//!   the obstacles); only the linearised integrator projects the whole mesh after its step (the
+//!   `contact` module);
 //! - pins: removed from the unknowns (SPEC §3 reduction, [`PinMethod::Reduction`]), held at their
 //!   positions, or at the end of the step moved to where their prescribed path is at t + h (the
 //!   right-hand side changes, the matrices do not: PD's factorisation and Newton's symbolic

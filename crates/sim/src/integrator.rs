@@ -473,14 +473,14 @@ pub struct Settings {
     pub pins: PinMethod,
     /// The linearised integrator's settings (default: β = 1, CG to 1e-8).
     pub linearized: LinearizedParams,
-    /// Newton's settings (default: relative gradient 1e-8).
+    /// Newton's settings (default: step size 1e-5 m/s, [`hooke_solvers::DEFAULT_STEP_TOLERANCE`]).
     pub newton: hooke_solvers::NewtonParams,
     /// Projective dynamics' settings (default: 10 iterations). Its factorisation settings also
     /// serve the PD matrix of `lbfgs`, `newton-cg` and `pd-chebyshev`.
     pub pd: hooke_solvers::PdParams,
-    /// L-BFGS's settings (default: relative gradient 1e-8, 100 iterations, history 5).
+    /// L-BFGS's settings (default: step size 1e-5 m/s, 100 iterations, history 5).
     pub lbfgs: hooke_solvers::LbfgsParams,
-    /// Newton-CG's settings (default: relative gradient 1e-8, 100 iterations).
+    /// Newton-CG's settings (default: step size 1e-5 m/s, 100 iterations).
     pub newton_cg: hooke_solvers::NewtonCgParams,
     /// Chebyshev PD's settings (default: 10 iterations; its `rate` is the fallback when the
     /// estimate does not form, or the ρ used when [`Settings::chebyshev_estimate`] is `None`).

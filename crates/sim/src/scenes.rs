@@ -383,7 +383,7 @@ fn solid_from_surface(
 /// bunny-drop (SCENES.md "Solids from surfaces"): `data/meshes/bunny.obj` (z up in the file, turned
 /// y up) scaled to a diagonal of 0.3 m, filled at a spacing of 0.01 m, k = 1e4 N/m, 1000 kg/m³
 /// lumped, its lowest point 0.2 m above the frictionless ground plane y = 0; gravity; 60 frames of 1/60 s, by
-/// backward Euler (Newton), the contact projected after each step.
+/// backward Euler (Newton), the ground a barrier inside Newton's objective (docs/contact.md).
 ///
 /// # Errors
 /// Never for the built-in data; the `Result` is for uniformity.
