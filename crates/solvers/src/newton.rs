@@ -506,9 +506,12 @@ pub struct NewtonParams {
 /// factor: far cheaper than a factorisation of a dense factor. CG gives up as soon as its residual
 /// falls behind the geometric rate that would reach [`FactorReuse::tolerance`] within
 /// [`FactorReuse::max_iterations`] (so a matrix far from the factor's costs one or two solves),
-/// or on a direction of non-positive curvature; the matrix is then factored as without reuse, and
-/// no reuse is tried until a Newton step is taken whole (the model holds again). Not used under
-/// [`IndefinitePolicy::NewtonIfDescent`], which needs each matrix's inertia.
+/// or on a direction of non-positive curvature; the matrix is then factored as without reuse.
+/// After a refused attempt the next 1, 2, 4, … 16 chances are passed over (the pause doubles with
+/// each refusal in a row and ends with a success), so a scene whose matrices keep changing, such
+/// as a swinging cloth, rarely pays for an attempt. Tried only on the exact matrix (no blend or
+/// shift), whose factor is held as LLᵀ. Not used under [`IndefinitePolicy::NewtonIfDescent`],
+/// which needs each matrix's inertia.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FactorReuse {
     /// CG iterations allowed before the matrix is factored after all; 0 turns reuse off.
@@ -939,7 +942,14 @@ pub struct Newton {
     rhs: Vec<f64>,
     cg: ConjugateGradient,
     cg_report: Report,
+    /// Chances to reuse the held factor still to be passed over after refused attempts, and the
+    /// length of the last such pause (see [`FactorReuse`]).
+    reuse_pause: u32,
+    reuse_backoff: u32,
 }
+
+/// The longest pause, in chances passed over, after consecutive refused reuses.
+const MAX_REUSE_BACKOFF: u32 = 16;
 
 /// An accepted step: its length α and Φ(x + αΔ) − Φ(x).
 struct Accepted {
@@ -989,6 +999,8 @@ impl Newton {
             rhs: vec![0.0; n],
             cg: ConjugateGradient::new(CgParams::default()),
             cg_report: Report::start(MAX_RELAXATION_COUNT),
+            reuse_pause: 0,
+            reuse_backoff: 0,
             params,
         })
     }
@@ -1061,6 +1073,10 @@ impl Newton {
         if !self.cholesky.has_llt_factor() {
             return false;
         }
+        if self.reuse_pause > 0 {
+            self.reuse_pause -= 1;
+            return false;
+        }
         self.regularize(problem, x, policy);
         for (b, g) in self.rhs.iter_mut().zip(&self.g) {
             *b = -g;
@@ -1103,8 +1119,11 @@ impl Newton {
         report.reuse_iterations += iterations;
         if converged {
             report.reused_factors += 1;
+            self.reuse_backoff = 0;
         } else {
             report.refused_reuses += 1;
+            self.reuse_backoff = (2 * self.reuse_backoff).clamp(1, MAX_REUSE_BACKOFF);
+            self.reuse_pause = self.reuse_backoff;
         }
         converged
     }
@@ -1328,8 +1347,8 @@ impl Newton {
             r.wall_time = start.elapsed();
         };
         let mut gradient = g0 * scale;
-        // Solve by the held factor, except after a refused attempt until the next full step (the
-        // matrix is moving away from the factor's, and a full step says the model holds again).
+        // Solve by the held factor (with pauses after refused attempts), except after a reused
+        // step the line search refused, until the next full step.
         let reuse_on = p.factor_reuse.is_on() && p.indefinite != IndefinitePolicy::NewtonIfDescent;
         let mut reuse = reuse_on;
         loop {
@@ -1379,9 +1398,6 @@ impl Newton {
                     reused = true;
                     Some(0)
                 } else {
-                    if reuse && failed == 0 && self.shift == 0.0 {
-                        reuse = false;
-                    }
                     match self.factor_at_shift(problem, x, p.indefinite, report) {
                         Ok(inertia) if inertia.is_positive_definite() => Some(0),
                         Ok(inertia) if p.indefinite == IndefinitePolicy::NewtonIfDescent => {
