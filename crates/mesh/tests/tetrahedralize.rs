@@ -407,10 +407,9 @@ proptest! {
     }
 }
 
-/// The torus that `tori_are_filled_within_the_bounds` shrank to (tetrahedralize.proptest-regressions):
-/// warping the lattice vertices in index order moved a black vertex onto the cut point of its edge
-/// to a red vertex that was then warped elsewhere, and the lattice tetrahedron of the two with two
-/// more warped vertices had a dihedral angle of 10.28°.
+/// The torus that `tori_are_filled_within_the_bounds` shrank to (tetrahedralize.proptest-regressions)
+/// when the bounds were wrongly taken as 10.7°–164.8°: its 10.28° tetrahedron is legal for the
+/// thresholds in use, whose proven bounds are 9.3171°–161.6432°.
 #[test]
 fn shrunk_torus_is_filled_within_the_bounds() {
     // The rotation as proptest printed it: nalgebra's column-major storage, each inner array a
@@ -567,6 +566,47 @@ fn inconsistent_orientation_names_its_triangles() {
             assert!(first == 5 || second == 5, "triangles {first} and {second}");
         }
         other => panic!("expected InconsistentOrientation, got {other:?}"),
+    }
+}
+
+/// Two cubes that share only a corner: every edge is in two triangles, but the corner's triangles
+/// form two fans. No spacing resolves it, and the message says what it is.
+#[test]
+fn bowtie_vertex_is_named() {
+    let (mut p, mut t) = cuboid(Vec3::new(1.0, 1.0, 1.0));
+    // The second cube, shifted by (1, 1, 1), reuses corner 7 (0.5, 0.5, 0.5) as its corner 0.
+    let (q, u) = cuboid(Vec3::new(1.0, 1.0, 1.0));
+    let offset = p.len() as u32;
+    p.extend(q.iter().map(|x| x + Vec3::new(1.0, 1.0, 1.0)));
+    t.extend(u.iter().map(|f| f.map(|v| v + offset)));
+    match closed_surface(p, t) {
+        Err(e @ StuffingError::NonManifoldVertex { vertex, fans, .. }) => {
+            // Corner 7 and its bit-identical copy (the second cube's corner 0) are one vertex.
+            assert_eq!((vertex, fans), (7, 2));
+            assert!(e.to_string().contains("non-manifold vertex"), "{e}");
+        }
+        other => panic!("expected NonManifoldVertex, got {other:?}"),
+    }
+}
+
+/// Two overlapping spheres in one mesh: closed and manifold, but self-intersecting. Refused by name
+/// (not as a feature thinner than the spacing), naming two triangles that do intersect.
+#[test]
+fn self_intersecting_surface_is_named() {
+    let (p, t) = icosphere(2, 1.0);
+    let mut positions: Vec<Vec3> = p.clone();
+    positions.extend(p.iter().map(|q| q + Vec3::new(0.7, 0.1, 0.05)));
+    let offset = p.len() as u32;
+    let mut triangles = t.clone();
+    triangles.extend(t.iter().map(|f| f.map(|v| v + offset)));
+    match closed_surface(positions, triangles.clone()) {
+        Err(e @ StuffingError::SelfIntersecting { first, second }) => {
+            assert!(e.to_string().contains("self-intersecting"), "{e}");
+            assert!(first < second);
+            // One triangle of each sphere.
+            assert!(first < t.len() && second >= t.len(), "{first}, {second}");
+        }
+        other => panic!("expected SelfIntersecting, got {other:?}"),
     }
 }
 
