@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use hooke_mesh::io::{parse_obj, read_obj};
 use hooke_mesh::stuffing::{
-    dihedral_angles, tetrahedralize, ClosedSurface, Stuffed, StuffingError, StuffingOptions,
-    MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG,
+    dihedral_angles, tetrahedralize, tetrahedralize_graded, ClosedSurface, Stuffed, StuffingError,
+    StuffingOptions, MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG,
 };
 use hooke_mesh::{tetrahedron_signed_volume, TriMesh, Vec3};
 use nalgebra::{Rotation3, Unit};
@@ -509,6 +509,61 @@ fn sphere_volume_converges_at_second_order() {
         assert!(*rate > 1.5, "convergence rate {rate} (errors {errors:?})");
     }
     assert!(errors[2] < 0.01);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The graded variant.
+
+/// The boundary triangles of a mesh as sorted coordinate triples (bit patterns), so that two meshes
+/// numbered differently can be compared.
+fn boundary_geometry(stuffed: &Stuffed) -> Vec<[[u64; 3]; 3]> {
+    let p = stuffed.mesh.positions();
+    let mut out: Vec<[[u64; 3]; 3]> = stuffed
+        .mesh
+        .boundary_faces()
+        .iter()
+        .map(|f| {
+            let mut t = f.map(|v| {
+                let q = p[v as usize];
+                [q.x.to_bits(), q.y.to_bits(), q.z.to_bits()]
+            });
+            t.sort_unstable();
+            t
+        })
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// Graded meshes pass every check of the uniform ones (orientation, the row's angle bounds, faces,
+/// a closed manifold boundary on the surface, volume), have the uniform mesh's boundary at the
+/// same spacing (the grid is the uniform lattice near the surface), and fewer tetrahedra.
+#[test]
+fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
+    let cases = [
+        (surface(&TriMesh::new(icosphere(4, 1.0).0, icosphere(4, 1.0).1).unwrap()), 0.05, true),
+        (surface(&transformed(torus(1.0, 0.5, 48, 24), &Rotation3::from_euler_angles(0.3, 0.2, 0.1), 1.0, Vec3::zeros())), 0.06, true),
+        (surface(&data_mesh("bunny.obj")), 0.0, false),
+    ];
+    for (s, spacing, smooth) in cases {
+        let spacing = if spacing > 0.0 { spacing } else { diagonal(&s) / 40.0 };
+        let options = StuffingOptions::new(spacing).unwrap();
+        let graded = tetrahedralize_graded(&s, &options)
+            .unwrap_or_else(|e| panic!("graded stuffing at spacing {spacing}: {e}"));
+        let uniform = stuff(&s, spacing);
+        eprintln!(
+            "graded {} tetrahedra ({:.2}°–{:.2}°) against uniform {} at spacing {spacing}",
+            graded.report.tets,
+            graded.report.min_dihedral_deg,
+            graded.report.max_dihedral_deg,
+            uniform.report.tets
+        );
+        assert_valid_with(&s, &graded, spacing, Some(0.02), smooth);
+        assert_eq!(boundary_geometry(&graded), boundary_geometry(&uniform));
+        // Both fill the same region: equal volumes up to round-off in the sums (1e-9 relative).
+        assert!((graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume);
+        assert!(graded.report.tets < uniform.report.tets);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

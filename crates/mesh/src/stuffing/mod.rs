@@ -53,6 +53,7 @@
 //! ```
 
 mod error;
+mod graded;
 mod intersect;
 mod lattice;
 mod manifold;
@@ -66,6 +67,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 pub use error::StuffingError;
+pub use graded::{tetrahedralize_graded, GRADED_MAX_LEVEL};
 pub use quality::{
     dihedral_angles, hausdorff_distance, quality_report, radius_ratio, QualityReport,
 };
