@@ -541,12 +541,29 @@ fn boundary_geometry(stuffed: &Stuffed) -> Vec<[[u64; 3]; 3]> {
 #[test]
 fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
     let cases = [
-        (surface(&TriMesh::new(icosphere(4, 1.0).0, icosphere(4, 1.0).1).unwrap()), 0.05, true),
-        (surface(&transformed(torus(1.0, 0.5, 48, 24), &Rotation3::from_euler_angles(0.3, 0.2, 0.1), 1.0, Vec3::zeros())), 0.06, true),
+        (
+            surface(&TriMesh::new(icosphere(4, 1.0).0, icosphere(4, 1.0).1).unwrap()),
+            0.05,
+            true,
+        ),
+        (
+            surface(&transformed(
+                torus(1.0, 0.5, 48, 24),
+                &Rotation3::from_euler_angles(0.3, 0.2, 0.1),
+                1.0,
+                Vec3::zeros(),
+            )),
+            0.06,
+            true,
+        ),
         (surface(&data_mesh("bunny.obj")), 0.0, false),
     ];
     for (s, spacing, smooth) in cases {
-        let spacing = if spacing > 0.0 { spacing } else { diagonal(&s) / 40.0 };
+        let spacing = if spacing > 0.0 {
+            spacing
+        } else {
+            diagonal(&s) / 40.0
+        };
         let options = StuffingOptions::new(spacing).unwrap();
         let graded = tetrahedralize_graded(&s, &options)
             .unwrap_or_else(|e| panic!("graded stuffing at spacing {spacing}: {e}"));
@@ -561,7 +578,9 @@ fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
         assert_valid_with(&s, &graded, spacing, Some(0.02), smooth);
         assert_eq!(boundary_geometry(&graded), boundary_geometry(&uniform));
         // Both fill the same region: equal volumes up to round-off in the sums (1e-9 relative).
-        assert!((graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume);
+        assert!(
+            (graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume
+        );
         assert!(graded.report.tets < uniform.report.tets);
     }
 }

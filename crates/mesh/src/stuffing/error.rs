@@ -121,9 +121,7 @@ pub enum StuffingError {
     /// Two triangles of the surface intersect (or touch) away from the vertices and edges they
     /// share: the surface is self-intersecting and bounds no well-defined solid. No lattice spacing
     /// resolves it; the surface must be repaired.
-    #[error(
-        "the surface is self-intersecting: triangles {first} and {second} intersect"
-    )]
+    #[error("the surface is self-intersecting: triangles {first} and {second} intersect")]
     SelfIntersecting {
         /// The lower-numbered triangle of the first intersecting pair found (by that number, then
         /// the other's).

@@ -11,7 +11,7 @@
 //!   its diagonal through the face's centre, and both pyramids over it (apex the big cube's centre,
 //!   and the small cube's) into two half-pyramids.
 //!
-//! Every cube within 3h (plus its own half-diagonal) of the surface is finest, so the tetrahedra
+//! Every cube within 2h (plus its own half-diagonal) of the surface is finest, so the tetrahedra
 //! that meet the surface, and every vertex that warping can move (all within h of the surface),
 //! belong to BCC tetrahedra of the uniform lattice: the uniform lattice's cut points, warping
 //! (same thresholds) and stencils apply to them unchanged, and the coarser tetrahedra are entirely
@@ -40,10 +40,12 @@ use crate::{tetrahedron_signed_volume, Vec3};
 /// The coarsest cubes have side 2^`GRADED_MAX_LEVEL`·h.
 pub const GRADED_MAX_LEVEL: u32 = 4;
 
-/// Distance (in spacings) beyond a cube's half-diagonal within which the surface makes it finest:
-/// warping moves only vertices within h of the surface, and a finest cube next to a coarser one is
-/// within √3·h of it, so 3h keeps both away from every coarse tetrahedron.
-const FINE_MARGIN: f64 = 3.0;
+/// Distance (in spacings) beyond a cube's half-diagonal within which the surface makes it finest.
+/// A coarser cube's points are then at least 2h from the surface, and the vertices of the coarse
+/// tetrahedra in a finest cube next to it (its centre, h/2 from their shared face, and points of
+/// that face) at least 1.5h: farther than warping reaches (h, a lattice edge) and on one side of
+/// the surface, so every coarse tetrahedron is untouched and wholly inside or outside.
+const FINE_MARGIN: f64 = 2.0;
 
 /// A leaf cube: its level (side 2^level·h) and its lowest corner in units of h.
 type Cube = (u32, [i64; 3]);
@@ -134,7 +136,13 @@ pub fn tetrahedralize_graded(
         .iter()
         .flat_map(|&(level, c)| {
             let s = 1i64 << level;
-            (0..8).map(move |k| [c[0] + s * (k & 1), c[1] + s * ((k >> 1) & 1), c[2] + s * (k >> 2)])
+            (0..8).map(move |k| {
+                [
+                    c[0] + s * (k & 1),
+                    c[1] + s * ((k >> 1) & 1),
+                    c[2] + s * (k >> 2),
+                ]
+            })
         })
         .collect();
     let black = |p: [i64; 3]| lattice.black_id(p.map(|x| x as usize));
@@ -146,7 +154,8 @@ pub fn tetrahedralize_graded(
             black(c.map(|x| x + half))
         }
     };
-    let (fine, coarse): (Vec<Vec<[u32; 4]>>, Vec<Vec<[u32; 4]>>) = leaves
+    type Chunks = Vec<Vec<[u32; 4]>>;
+    let (fine, coarse): (Chunks, Chunks) = leaves
         .par_iter()
         .map(|&cube| {
             let (level, c) = cube;
@@ -157,7 +166,11 @@ pub fn tetrahedralize_graded(
                 for outward in [false, true] {
                     // A point just beyond the face's centre finds the neighbour.
                     let mut probe = c.map(|x| x as f64 + 0.5 * s as f64);
-                    probe[axis] += if outward { 0.5 * s as f64 + 0.25 } else { -0.5 * s as f64 - 0.25 };
+                    probe[axis] += if outward {
+                        0.5 * s as f64 + 0.25
+                    } else {
+                        -0.5 * s as f64 - 0.25
+                    };
                     let Some(neighbour) = octree.leaf_at(probe) else {
                         continue;
                     };
@@ -200,13 +213,21 @@ pub fn tetrahedralize_graded(
                         let half = s / 2;
                         let mid = at(half, half);
                         for (du, dv) in [(0, 0), (half, 0), (0, half), (half, half)] {
-                            let q = [at(du, dv), at(du + half, dv), at(du + half, dv + half), at(du, dv + half)];
+                            let q = [
+                                at(du, dv),
+                                at(du + half, dv),
+                                at(du + half, dv + half),
+                                at(du, dv + half),
+                            ];
                             let far = *q
                                 .iter()
                                 .max_by_key(|p| (0..3).map(|a| (p[a] - mid[a]).abs()).sum::<i64>())
                                 .unwrap_or(&q[0]);
-                            let others: Vec<[i64; 3]> =
-                                q.iter().copied().filter(|&p| p != mid && p != far).collect();
+                            let others: Vec<[i64; 3]> = q
+                                .iter()
+                                .copied()
+                                .filter(|&p| p != mid && p != far)
+                                .collect();
                             let mut probe = [0, 1, 2].map(|a| (q[0][a] + q[2][a]) as f64 / 2.0);
                             probe[axis] += if outward { 0.25 } else { -0.25 };
                             let Some(small) = octree.leaf_at(probe) else {
@@ -234,7 +255,13 @@ pub fn tetrahedralize_graded(
     let mut signs = vec![-1i8; lattice.vertex_count()];
     let classified: Vec<i8> = used
         .par_iter()
-        .map(|&id| if surface.contains(&lattice.position(id)) { 1 } else { -1 })
+        .map(|&id| {
+            if surface.contains(&lattice.position(id)) {
+                1
+            } else {
+                -1
+            }
+        })
         .collect();
     for (&id, &sign) in used.iter().zip(&classified) {
         signs[id as usize] = sign;
@@ -243,7 +270,8 @@ pub fn tetrahedralize_graded(
     let mut edges: Vec<(u32, u32)> = fine
         .iter()
         .flat_map(|t| {
-            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(i, j)| (t[i].min(t[j]), t[i].max(t[j])))
+            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+                .map(|(i, j)| (t[i].min(t[j]), t[i].max(t[j])))
         })
         .filter(|&(a, b)| signs[a as usize] * signs[b as usize] < 0)
         .collect();
@@ -252,7 +280,11 @@ pub fn tetrahedralize_graded(
     let cuts: Vec<Cut> = edges
         .par_iter()
         .map(|&(a, b)| {
-            let (inside, outside) = if signs[a as usize] > 0 { (a, b) } else { (b, a) };
+            let (inside, outside) = if signs[a as usize] > 0 {
+                (a, b)
+            } else {
+                (b, a)
+            };
             Cut {
                 a,
                 b,
@@ -291,14 +323,13 @@ pub fn tetrahedralize_graded(
             continue;
         }
         let first = stenciled.len();
-        stencils::fill(&stuffing, tet, s, &mut stenciled)
-            .map_err(|failure| {
-                Broken {
-                    what: failure.describe(),
-                    point: centroid(&tet),
-                }
-                .at(h)
-            })?;
+        stencils::fill(&stuffing, tet, s, &mut stenciled).map_err(|failure| {
+            Broken {
+                what: failure.describe(),
+                point: centroid(&tet),
+            }
+            .at(h)
+        })?;
         for t in &mut stenciled[first..] {
             *t = orient(*t);
         }
@@ -383,7 +414,12 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
                     return ((level, c), false);
                 }
                 let s = (1i64 << level) as f64;
-                let centre = origin + Vec3::new(c[0] as f64 + 0.5 * s, c[1] as f64 + 0.5 * s, c[2] as f64 + 0.5 * s) * h;
+                let centre = origin
+                    + Vec3::new(
+                        c[0] as f64 + 0.5 * s,
+                        c[1] as f64 + 0.5 * s,
+                        c[2] as f64 + 0.5 * s,
+                    ) * h;
                 let reach = (0.5 * 3.0_f64.sqrt() * s + FINE_MARGIN) * h;
                 ((level, c), surface.signed_distance(&centre).abs() < reach)
             })
@@ -395,7 +431,11 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
                 for k in 0..8 {
                     pending.push((
                         level - 1,
-                        [c[0] + half * (k & 1), c[1] + half * ((k >> 1) & 1), c[2] + half * (k >> 2)],
+                        [
+                            c[0] + half * (k & 1),
+                            c[1] + half * ((k >> 1) & 1),
+                            c[2] + half * (k >> 2),
+                        ],
                     ));
                 }
             } else {

@@ -87,7 +87,10 @@ fn in_triangle_2d(x: [f64; 2], t: [[f64; 2]; 3]) -> bool {
 
 /// Whether the closed segment `p`–`q` meets the closed (non-degenerate) triangle `t`.
 pub(crate) fn segment_meets_triangle(p: &Vec3, q: &Vec3, t: &[Vec3; 3]) -> bool {
-    let (sp, sq) = (orient(&t[0], &t[1], &t[2], p), orient(&t[0], &t[1], &t[2], q));
+    let (sp, sq) = (
+        orient(&t[0], &t[1], &t[2], p),
+        orient(&t[0], &t[1], &t[2], q),
+    );
     if sp * sq > 0 {
         return false;
     }
@@ -113,7 +116,11 @@ pub(crate) fn segment_meets_triangle(p: &Vec3, q: &Vec3, t: &[Vec3; 3]) -> bool 
 /// Whether two triangles of a surface meet anywhere but where they share vertices. `t` and `u` are
 /// the triangles' vertex ids and `position` places them; vertices are compared by id (the surface
 /// has welded bit-identical positions).
-pub(crate) fn triangles_intersect(t: [u32; 3], u: [u32; 3], position: impl Fn(u32) -> Vec3) -> bool {
+pub(crate) fn triangles_intersect(
+    t: [u32; 3],
+    u: [u32; 3],
+    position: impl Fn(u32) -> Vec3,
+) -> bool {
     let shared: Vec<u32> = t.iter().copied().filter(|v| u.contains(v)).collect();
     let pt = t.map(&position);
     let pu = u.map(&position);

@@ -328,7 +328,12 @@ pub fn tetrahedralize(
             .collect(),
     ];
     let tetrahedra: Vec<[u32; 4]> = chunks.into_iter().flatten().collect();
-    let mesh = assemble(&tetrahedra, lattice.vertex_count() + cuts.len(), position, h)?;
+    let mesh = assemble(
+        &tetrahedra,
+        lattice.vertex_count() + cuts.len(),
+        position,
+        h,
+    )?;
     let seconds = start.elapsed().as_secs_f64();
     let mut report = quality_report(&mesh, None);
     report.surface_volume = Some(surface.enclosed_volume());
@@ -407,7 +412,8 @@ pub(crate) fn assemble(
             let [a, b, c, d] = t.map(|v| &positions[v as usize]);
             (t, tetrahedron_signed_volume(a, b, c, d))
         })
-        .find_first(|(_, volume)| !(*volume > 0.0))
+        // NaN counts as not positive.
+        .find_first(|(_, volume)| volume.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
     {
         let centroid = t.iter().map(|&v| positions[v as usize]).sum::<Vec3>() / 4.0;
         return Err(StuffingError::InvertedTetrahedron {
@@ -685,33 +691,33 @@ pub(crate) fn fill_lattice(
         t
     };
     type Chunks = Vec<Vec<[u32; 4]>>;
-    let filled: Result<Vec<(Vec<[u32; 4]>, Vec<[u32; 4]>)>, Broken> = (black..lattice_count)
+    let filled: Result<Vec<Filled>, Broken> = (black..lattice_count)
         .into_par_iter()
         .try_fold(
             || (Vec::new(), Vec::new()),
             |(mut out, mut zero), red| {
-            for axis in 0..3 {
-                for tet in lattice.tetrahedra_along(red, axis).into_iter().flatten() {
-                    let s = tet.map(|v| signs[v as usize]);
-                    if s.iter().all(|&x| x < 0) {
-                        continue;
-                    }
-                    if s.iter().all(|&x| x == 0) {
-                        zero.push(orient(tet));
-                        continue;
-                    }
-                    let first = out.len();
-                    stencils::fill(&stuffing, tet, s, &mut out).map_err(|failure| Broken {
-                        what: failure.describe(),
-                        point: tet.iter().map(|&v| lattice.position(v)).sum::<Vec3>() / 4.0,
-                    })?;
-                    for t in &mut out[first..] {
-                        *t = orient(*t);
+                for axis in 0..3 {
+                    for tet in lattice.tetrahedra_along(red, axis).into_iter().flatten() {
+                        let s = tet.map(|v| signs[v as usize]);
+                        if s.iter().all(|&x| x < 0) {
+                            continue;
+                        }
+                        if s.iter().all(|&x| x == 0) {
+                            zero.push(orient(tet));
+                            continue;
+                        }
+                        let first = out.len();
+                        stencils::fill(&stuffing, tet, s, &mut out).map_err(|failure| Broken {
+                            what: failure.describe(),
+                            point: tet.iter().map(|&v| lattice.position(v)).sum::<Vec3>() / 4.0,
+                        })?;
+                        for t in &mut out[first..] {
+                            *t = orient(*t);
+                        }
                     }
                 }
-            }
-            Ok((out, zero))
-        },
+                Ok((out, zero))
+            },
         )
         .collect();
     let (stenciled, all_zero): (Chunks, Chunks) = filled?.into_iter().unzip();
@@ -839,7 +845,10 @@ mod tests {
             for t in &stenciled {
                 let [a, b, c, d] = t.map(|id| final_position(&lattice, &cuts, &warped, id));
                 let volume = tetrahedron_signed_volume(&a, &b, &c, &d);
-                assert!(volume > 0.0, "stencil tetrahedron {t:?} inverted: {volume:e}");
+                assert!(
+                    volume > 0.0,
+                    "stencil tetrahedron {t:?} inverted: {volume:e}"
+                );
                 for angle in dihedral_angles(&a, &b, &c, &d) {
                     stencil.0 = stencil.0.min(angle.to_degrees());
                     stencil.1 = stencil.1.max(angle.to_degrees());
@@ -872,7 +881,13 @@ mod tests {
     /// angle in degrees as printed).
     const TABLE_1: [(&str, f64, f64, f64, f64); 3] = [
         ("minimum dihedral, safe", 0.24999, 0.41189, 9.3171, 161.6432),
-        ("minimum dihedral, unsafe", 0.28511, 0.39882, 10.7843, 164.7373),
+        (
+            "minimum dihedral, unsafe",
+            0.28511,
+            0.39882,
+            10.7843,
+            164.7373,
+        ),
         ("ordered warping", 0.24999, 0.42978, 9.7767, 163.5684),
     ];
 
@@ -935,5 +950,4 @@ mod tests {
         assert_eq!(ALPHA, Alpha { long, short });
         assert_eq!((MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG), (min, max));
     }
-
 }

@@ -157,8 +157,12 @@ pub(crate) enum StencilFailure {
 impl StencilFailure {
     pub(crate) fn describe(self) -> &'static str {
         match self {
-            StencilFailure::MissingCut => "a lattice edge with an inside and an outside end has no cut point",
-            StencilFailure::CyclicPrism => "a prism's face diagonals form a cycle, so it cannot be split into tetrahedra",
+            StencilFailure::MissingCut => {
+                "a lattice edge with an inside and an outside end has no cut point"
+            }
+            StencilFailure::CyclicPrism => {
+                "a prism's face diagonals form a cycle, so it cannot be split into tetrahedra"
+            }
         }
     }
 }
@@ -207,7 +211,12 @@ pub(crate) fn fill<L: StencilLattice>(
         (_, 0) => out.push(tet),
         (1, 3) => {
             let p = plus[0];
-            out.push([v(p), cut(p, minus[0])?, cut(p, minus[1])?, cut(p, minus[2])?]);
+            out.push([
+                v(p),
+                cut(p, minus[0])?,
+                cut(p, minus[1])?,
+                cut(p, minus[2])?,
+            ]);
         }
         (1, 2) => {
             let p = plus[0];
@@ -282,7 +291,12 @@ mod tests {
     #[test]
     fn a_missing_cut_point_is_reported() {
         let mut out = Vec::new();
-        for signs in [[1, -1, -1, -1], [1, 1, -1, 0], [1, 1, -1, -1], [1, 1, 1, -1]] {
+        for signs in [
+            [1, -1, -1, -1],
+            [1, 1, -1, 0],
+            [1, 1, -1, -1],
+            [1, 1, 1, -1],
+        ] {
             assert_eq!(
                 fill(&NoCuts, [0, 1, 2, 3], signs, &mut out),
                 Err(StencilFailure::MissingCut),

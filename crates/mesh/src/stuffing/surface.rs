@@ -112,7 +112,10 @@ fn check_closed_manifold(triangles: &[[u32; 3]], renumber: &[u32]) -> Result<(),
 /// With every edge in exactly two triangles, check that the triangles at each vertex form one fan
 /// (a bowtie vertex has two or more, joined only at the vertex). `triangles` are in welded
 /// numbering; `uses` is [`check_closed_manifold`]'s sorted list of edge uses, two per edge.
-fn check_vertex_fans(triangles: &[[u32; 3]], uses: &[(u64, bool, u32)]) -> Result<(), StuffingError> {
+fn check_vertex_fans(
+    triangles: &[[u32; 3]],
+    uses: &[(u64, bool, u32)],
+) -> Result<(), StuffingError> {
     // Union-find over the corners (triangle, vertex): the two triangles of an edge join their
     // corners at both of its ends.
     let corner = |t: u32, v: u32| -> usize {
@@ -177,7 +180,11 @@ fn check_vertex_fans(triangles: &[[u32; 3]], uses: &[(u64, bool, u32)]) -> Resul
 /// The first pair of triangles (by the lower index, then the other) that intersect away from the
 /// vertices they share, if any. Candidate pairs come from parry's BVH (bounding boxes that
 /// overlap); each is decided by exact predicates (module `intersect`).
-fn first_self_intersection(shape: &ParryMesh, triangles: &[[u32; 3]], positions: &[Vec3]) -> Option<(usize, usize)> {
+fn first_self_intersection(
+    shape: &ParryMesh,
+    triangles: &[[u32; 3]],
+    positions: &[Vec3],
+) -> Option<(usize, usize)> {
     use rayon::prelude::*;
     let bvh = shape.bvh();
     (0..triangles.len())
