@@ -19,7 +19,8 @@
 //! with vertices on both sides is a typed error. The paper states that Table 1's bounds hold for
 //! these meshes too, except for two entries of other rows (which deteriorate to 158.1918° and
 //! 147.0470°); for the row in use the bounds are [`MIN_DIHEDRAL_BOUND_DEG`] and
-//! [`MAX_DIHEDRAL_BOUND_DEG`], and the coarse tetrahedra's fixed shapes lie well inside them.
+//! [`MAX_DIHEDRAL_BOUND_DEG`], and the coarse tetrahedra's fixed shapes lie well inside them (BCC
+//! 60°–90°, bisected BCC 45°–90°, half-pyramids 45°–90° and 45°–120°).
 //!
 //! [`MIN_DIHEDRAL_BOUND_DEG`]: super::MIN_DIHEDRAL_BOUND_DEG
 //! [`MAX_DIHEDRAL_BOUND_DEG`]: super::MAX_DIHEDRAL_BOUND_DEG
@@ -50,9 +51,42 @@ const FINE_MARGIN: f64 = 2.0;
 /// A leaf cube: its level (side 2^level·h) and its lowest corner in units of h.
 type Cube = (u32, [i64; 3]);
 
+/// A multiply-rotate hasher (as rustc's FxHash) for the octree's integer keys: the balancing makes
+/// tens of look-ups per leaf, and the standard SipHash, built against adversarial keys, made it
+/// the graded mesher's slowest step.
+#[derive(Clone, Copy, Default)]
+struct FastHasher(u64);
+
+impl std::hash::Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.write_u64(u64::from_le_bytes(word));
+        }
+    }
+    fn write_u64(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(5) ^ word).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_u32(&mut self, word: u32) {
+        self.write_u64(word as u64);
+    }
+    fn write_i64(&mut self, word: i64) {
+        self.write_u64(word as u64);
+    }
+    fn write_usize(&mut self, word: usize) {
+        self.write_u64(word as u64);
+    }
+}
+
+type FastSet<T> = HashSet<T, std::hash::BuildHasherDefault<FastHasher>>;
+
 /// The octree's leaves, by level and lowest corner.
 struct Octree {
-    leaves: HashSet<Cube>,
+    leaves: FastSet<Cube>,
     /// The domain in finest cubes per axis (a multiple of 2^GRADED_MAX_LEVEL).
     cubes: [i64; 3],
 }
@@ -132,7 +166,7 @@ pub fn tetrahedralize_graded(
         all.sort_unstable();
         all
     };
-    let corners: HashSet<[i64; 3]> = leaves
+    let corners: FastSet<[i64; 3]> = leaves
         .iter()
         .flat_map(|&(level, c)| {
             let s = 1i64 << level;
@@ -405,7 +439,7 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
         }
     }
     // Refine by distance, level by level (each level's queries in parallel).
-    let mut leaves = HashSet::new();
+    let mut leaves = FastSet::default();
     while !pending.is_empty() {
         let split: Vec<(Cube, bool)> = pending
             .par_iter()
@@ -444,10 +478,10 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
         }
     }
     let mut octree = Octree { leaves, cubes };
-    // Balance: a leaf more than twice the size of a leaf it touches (face, edge or corner) is split,
-    // finest leaves first. Splitting a cube of level L ≥ level + 2 gives cubes of level L − 1 ≥
-    // level + 1, which may still be too big for this level's leaves (so repeat), and never touches
-    // a finer leaf already balanced (it did not touch one before).
+    // Balance: a leaf more than twice the size of a leaf it touches (face, edge or corner) is split
+    // (down to twice that size where they touch), finest leaves first. The new cubes are at least
+    // twice the finer leaf's size, so they never unbalance a level already done; the same level is
+    // checked again until nothing is split.
     for level in 0..GRADED_MAX_LEVEL {
         loop {
             let mut at_level: Vec<Cube> = octree
@@ -457,26 +491,31 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
                 .filter(|&(l, _)| l == level)
                 .collect();
             at_level.sort_unstable();
-            let mut too_big: Vec<Cube> = at_level
-                .iter()
-                .flat_map(|&(l, c)| {
+            // Where a leaf touches one too big: the point beyond it, and the level it needs there.
+            let too_big: Vec<([f64; 3], u32)> = at_level
+                .par_iter()
+                .flat_map_iter(|&(l, c)| {
                     let s = (1i64 << l) as f64;
                     let octree = &octree;
                     (0..27).filter_map(move |n| {
                         let d = [n % 3 - 1, (n / 3) % 3 - 1, n / 9 - 1];
                         let probe = [0, 1, 2]
                             .map(|a| c[a] as f64 + 0.5 * s + d[a] as f64 * (0.5 * s + 0.25));
-                        octree.leaf_at(probe).filter(|other| other.0 > l + 1)
+                        octree
+                            .leaf_at(probe)
+                            .filter(|other| other.0 > l + 1)
+                            .map(|_| (probe, l + 1))
                     })
                 })
                 .collect();
-            too_big.sort_unstable();
-            too_big.dedup();
             if too_big.is_empty() {
                 break;
             }
-            for cube in too_big {
-                octree.split(cube);
+            // Split down to that level at once (one pass per level instead of one per halving).
+            for (probe, level) in too_big {
+                while let Some(cube) = octree.leaf_at(probe).filter(|c| c.0 > level) {
+                    octree.split(cube);
+                }
             }
         }
     }
