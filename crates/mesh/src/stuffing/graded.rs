@@ -87,6 +87,9 @@ type FastSet<T> = HashSet<T, std::hash::BuildHasherDefault<FastHasher>>;
 /// The octree's leaves, by level and lowest corner.
 struct Octree {
     leaves: FastSet<Cube>,
+    /// The side of the surface (+1 inside, −1 outside) of the leaves that lie wholly on one side
+    /// (those left coarse by the distance test, and their children): their vertices need no query.
+    sides: std::collections::HashMap<Cube, i8, std::hash::BuildHasherDefault<FastHasher>>,
     /// The domain in finest cubes per axis (a multiple of 2^GRADED_MAX_LEVEL).
     cubes: [i64; 3],
 }
@@ -110,6 +113,7 @@ impl Octree {
     /// Split `cube` into its eight children.
     fn split(&mut self, (level, corner): Cube) {
         self.leaves.remove(&(level, corner));
+        let side = self.sides.remove(&(level, corner));
         let half = 1i64 << (level - 1);
         for c in 0..8 {
             let child = [
@@ -118,6 +122,9 @@ impl Octree {
                 corner[2] + half * (c >> 2),
             ];
             self.leaves.insert((level - 1, child));
+            if let Some(side) = side {
+                self.sides.insert((level - 1, child), side);
+            }
         }
     }
 }
@@ -286,7 +293,27 @@ pub fn tetrahedralize_graded(
     let mut used: Vec<u32> = fine.iter().chain(&coarse).flatten().copied().collect();
     used.par_sort_unstable();
     used.dedup();
-    let mut signs = vec![-1i8; lattice.vertex_count()];
+    // The corners and centres of leaves wholly on one side take that side; the others (near the
+    // surface) are classified one by one, as in the uniform mesher.
+    let mut signs = vec![0i8; lattice.vertex_count()];
+    for &cube in &leaves {
+        if let Some(&side) = octree.sides.get(&cube) {
+            let (level, c) = cube;
+            let s = 1i64 << level;
+            for k in 0..8 {
+                signs[black([
+                    c[0] + s * (k & 1),
+                    c[1] + s * ((k >> 1) & 1),
+                    c[2] + s * (k >> 2),
+                ]) as usize] = side;
+            }
+            signs[centre(cube) as usize] = side;
+        }
+    }
+    let used: Vec<u32> = used
+        .into_iter()
+        .filter(|&id| signs[id as usize] == 0)
+        .collect();
     let classified: Vec<i8> = used
         .par_iter()
         .map(|&id| {
@@ -440,12 +467,13 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
     }
     // Refine by distance, level by level (each level's queries in parallel).
     let mut leaves = FastSet::default();
+    let mut sides = std::collections::HashMap::default();
     while !pending.is_empty() {
-        let split: Vec<(Cube, bool)> = pending
+        let split: Vec<(Cube, Option<f64>)> = pending
             .par_iter()
             .map(|&(level, c)| {
                 if level == 0 {
-                    return ((level, c), false);
+                    return ((level, c), None);
                 }
                 let s = (1i64 << level) as f64;
                 let centre = origin
@@ -454,12 +482,14 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
                         c[1] as f64 + 0.5 * s,
                         c[2] as f64 + 0.5 * s,
                     ) * h;
-                let reach = (0.5 * 3.0_f64.sqrt() * s + FINE_MARGIN) * h;
-                ((level, c), surface.signed_distance(&centre).abs() < reach)
+                ((level, c), Some(surface.signed_distance(&centre)))
             })
             .collect();
         pending = Vec::new();
-        for ((level, c), refine) in split {
+        for ((level, c), distance) in split {
+            let s = (1i64 << level) as f64;
+            let reach = (0.5 * 3.0_f64.sqrt() * s + FINE_MARGIN) * h;
+            let refine = distance.is_some_and(|d| d.abs() < reach);
             if refine {
                 let half = 1i64 << (level - 1);
                 for k in 0..8 {
@@ -474,10 +504,18 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
                 }
             } else {
                 leaves.insert((level, c));
+                // A coarse leaf's bounding ball misses the surface: one side for all of it.
+                if let Some(d) = distance {
+                    sides.insert((level, c), if d < 0.0 { 1 } else { -1 });
+                }
             }
         }
     }
-    let mut octree = Octree { leaves, cubes };
+    let mut octree = Octree {
+        leaves,
+        sides,
+        cubes,
+    };
     // Balance: a leaf more than twice the size of a leaf it touches (face, edge or corner) is split
     // (down to twice that size where they touch), finest leaves first. The new cubes are at least
     // twice the finer leaf's size, so they never unbalance a level already done; the same level is
