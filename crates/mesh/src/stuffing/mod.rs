@@ -31,7 +31,8 @@
 //! [`StuffingError::UnresolvedFeature`]. No tetrahedron is moved, flipped or re-warped after the
 //! stencils: what the paper's invariants exclude (an inverted tetrahedron, a missing cut point) is
 //! checked and refused with a typed error. The output is deterministic: the same for any number
-//! of threads. See `docs/mesher.md`.
+//! of threads. [`tetrahedralize_graded`] is the paper's graded variant (an octree background
+//! grid, finest at the surface; module `graded`). See `docs/mesher.md`.
 //!
 //! ```
 //! use hooke_mesh::stuffing::{tetrahedralize, ClosedSurface, StuffingOptions};
