@@ -1,6 +1,7 @@
 //! Isosurface stuffing of the Stanford bunny at spacings from 1/20 to 1/120 of its diagonal (up
 //! to about 10⁶ tetrahedra): time per mesh, tetrahedra per second (criterion's throughput) and the
-//! process's peak resident memory after each spacing.
+//! process's peak resident memory after each spacing; then the graded variant at the same surface
+//! spacings, with its tetrahedron count against the uniform mesh's.
 //!
 //! `cargo bench -p hooke-mesh --bench stuffing`; results in `benches/results/mesher-*`.
 
@@ -8,7 +9,7 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hooke_mesh::io::read_obj;
-use hooke_mesh::stuffing::{tetrahedralize, ClosedSurface, StuffingOptions};
+use hooke_mesh::stuffing::{tetrahedralize, tetrahedralize_graded, ClosedSurface, StuffingOptions};
 
 /// Peak resident set size of this process (kB), from /proc (Linux); 0 elsewhere.
 fn peak_rss_kb() -> u64 {
@@ -53,5 +54,38 @@ fn bunny(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bunny);
+fn bunny_graded(c: &mut Criterion) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/meshes/bunny.obj");
+    let surface = ClosedSurface::new(&read_obj(&path).expect("bunny.obj")).expect("closed bunny");
+    let [lo, hi] = surface.bounds();
+    let diagonal = (hi - lo).norm();
+    let mut group = c.benchmark_group("stuffing/bunny-graded");
+    group.sample_size(10);
+    group.warm_up_time(std::time::Duration::from_secs(1));
+    group.measurement_time(std::time::Duration::from_secs(5));
+    for divisions in [20u32, 40, 60, 80, 120] {
+        let options = StuffingOptions::new(diagonal / divisions as f64).expect("spacing");
+        let graded = tetrahedralize_graded(&surface, &options).expect("graded bunny");
+        let uniform = tetrahedralize(&surface, &options).expect("stuffed bunny");
+        eprintln!(
+            "bunny diagonal/{divisions} graded: {} tetrahedra ({:.2}× fewer than uniform's {}), {} vertices, {:.3} s against {:.3} s, dihedral {:.2}°..{:.2}°, peak RSS {} MB",
+            graded.report.tets,
+            uniform.report.tets as f64 / graded.report.tets as f64,
+            uniform.report.tets,
+            graded.report.vertices,
+            graded.report.seconds,
+            uniform.report.seconds,
+            graded.report.min_dihedral_deg,
+            graded.report.max_dihedral_deg,
+            peak_rss_kb() / 1024,
+        );
+        group.throughput(Throughput::Elements(graded.report.tets as u64));
+        group.bench_function(format!("diagonal-over-{divisions}"), |b| {
+            b.iter(|| tetrahedralize_graded(&surface, &options).expect("graded bunny"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bunny, bunny_graded);
 criterion_main!(benches);

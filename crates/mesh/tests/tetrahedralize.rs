@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use hooke_mesh::io::{parse_obj, read_obj};
 use hooke_mesh::stuffing::{
-    dihedral_angles, tetrahedralize, ClosedSurface, Stuffed, StuffingError, StuffingOptions,
-    MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG,
+    dihedral_angles, tetrahedralize, tetrahedralize_graded, ClosedSurface, Stuffed, StuffingError,
+    StuffingOptions, MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG,
 };
 use hooke_mesh::{tetrahedron_signed_volume, TriMesh, Vec3};
 use nalgebra::{Rotation3, Unit};
@@ -407,10 +407,9 @@ proptest! {
     }
 }
 
-/// The torus that `tori_are_filled_within_the_bounds` shrank to (tetrahedralize.proptest-regressions):
-/// warping the lattice vertices in index order moved a black vertex onto the cut point of its edge
-/// to a red vertex that was then warped elsewhere, and the lattice tetrahedron of the two with two
-/// more warped vertices had a dihedral angle of 10.28°.
+/// The torus that `tori_are_filled_within_the_bounds` shrank to (tetrahedralize.proptest-regressions)
+/// when the bounds were wrongly taken as 10.7°–164.8°: its 10.28° tetrahedron is legal for the
+/// thresholds in use, whose proven bounds are 9.3171°–161.6432°.
 #[test]
 fn shrunk_torus_is_filled_within_the_bounds() {
     // The rotation as proptest printed it: nalgebra's column-major storage, each inner array a
@@ -513,6 +512,80 @@ fn sphere_volume_converges_at_second_order() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The graded variant.
+
+/// The boundary triangles of a mesh as sorted coordinate triples (bit patterns), so that two meshes
+/// numbered differently can be compared.
+fn boundary_geometry(stuffed: &Stuffed) -> Vec<[[u64; 3]; 3]> {
+    let p = stuffed.mesh.positions();
+    let mut out: Vec<[[u64; 3]; 3]> = stuffed
+        .mesh
+        .boundary_faces()
+        .iter()
+        .map(|f| {
+            let mut t = f.map(|v| {
+                let q = p[v as usize];
+                [q.x.to_bits(), q.y.to_bits(), q.z.to_bits()]
+            });
+            t.sort_unstable();
+            t
+        })
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// Graded meshes pass every check of the uniform ones (orientation, the row's angle bounds, faces,
+/// a closed manifold boundary on the surface, volume), have the uniform mesh's boundary at the
+/// same spacing (the grid is the uniform lattice near the surface), and fewer tetrahedra.
+#[test]
+fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
+    let cases = [
+        (
+            surface(&TriMesh::new(icosphere(4, 1.0).0, icosphere(4, 1.0).1).unwrap()),
+            0.05,
+            true,
+        ),
+        (
+            surface(&transformed(
+                torus(1.0, 0.5, 48, 24),
+                &Rotation3::from_euler_angles(0.3, 0.2, 0.1),
+                1.0,
+                Vec3::zeros(),
+            )),
+            0.06,
+            true,
+        ),
+        (surface(&data_mesh("bunny.obj")), 0.0, false),
+    ];
+    for (s, spacing, smooth) in cases {
+        let spacing = if spacing > 0.0 {
+            spacing
+        } else {
+            diagonal(&s) / 40.0
+        };
+        let options = StuffingOptions::new(spacing).unwrap();
+        let graded = tetrahedralize_graded(&s, &options)
+            .unwrap_or_else(|e| panic!("graded stuffing at spacing {spacing}: {e}"));
+        let uniform = stuff(&s, spacing);
+        eprintln!(
+            "graded {} tetrahedra ({:.2}°–{:.2}°) against uniform {} at spacing {spacing}",
+            graded.report.tets,
+            graded.report.min_dihedral_deg,
+            graded.report.max_dihedral_deg,
+            uniform.report.tets
+        );
+        assert_valid_with(&s, &graded, spacing, Some(0.02), smooth);
+        assert_eq!(boundary_geometry(&graded), boundary_geometry(&uniform));
+        // Both fill the same region: equal volumes up to round-off in the sums (1e-9 relative).
+        assert!(
+            (graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume
+        );
+        assert!(graded.report.tets < uniform.report.tets);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Surface checks.
 
 fn closed_surface(
@@ -567,6 +640,47 @@ fn inconsistent_orientation_names_its_triangles() {
             assert!(first == 5 || second == 5, "triangles {first} and {second}");
         }
         other => panic!("expected InconsistentOrientation, got {other:?}"),
+    }
+}
+
+/// Two cubes that share only a corner: every edge is in two triangles, but the corner's triangles
+/// form two fans. No spacing resolves it, and the message says what it is.
+#[test]
+fn bowtie_vertex_is_named() {
+    let (mut p, mut t) = cuboid(Vec3::new(1.0, 1.0, 1.0));
+    // The second cube, shifted by (1, 1, 1), reuses corner 7 (0.5, 0.5, 0.5) as its corner 0.
+    let (q, u) = cuboid(Vec3::new(1.0, 1.0, 1.0));
+    let offset = p.len() as u32;
+    p.extend(q.iter().map(|x| x + Vec3::new(1.0, 1.0, 1.0)));
+    t.extend(u.iter().map(|f| f.map(|v| v + offset)));
+    match closed_surface(p, t) {
+        Err(e @ StuffingError::NonManifoldVertex { vertex, fans, .. }) => {
+            // Corner 7 and its bit-identical copy (the second cube's corner 0) are one vertex.
+            assert_eq!((vertex, fans), (7, 2));
+            assert!(e.to_string().contains("non-manifold vertex"), "{e}");
+        }
+        other => panic!("expected NonManifoldVertex, got {other:?}"),
+    }
+}
+
+/// Two overlapping spheres in one mesh: closed and manifold, but self-intersecting. Refused by name
+/// (not as a feature thinner than the spacing), naming two triangles that do intersect.
+#[test]
+fn self_intersecting_surface_is_named() {
+    let (p, t) = icosphere(2, 1.0);
+    let mut positions: Vec<Vec3> = p.clone();
+    positions.extend(p.iter().map(|q| q + Vec3::new(0.7, 0.1, 0.05)));
+    let offset = p.len() as u32;
+    let mut triangles = t.clone();
+    triangles.extend(t.iter().map(|f| f.map(|v| v + offset)));
+    match closed_surface(positions, triangles.clone()) {
+        Err(e @ StuffingError::SelfIntersecting { first, second }) => {
+            assert!(e.to_string().contains("self-intersecting"), "{e}");
+            assert!(first < second);
+            // One triangle of each sphere.
+            assert!(first < t.len() && second >= t.len(), "{first}, {second}");
+        }
+        other => panic!("expected SelfIntersecting, got {other:?}"),
     }
 }
 

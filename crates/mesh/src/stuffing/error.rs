@@ -104,20 +104,64 @@ pub enum StuffingError {
         /// The spacing used (m).
         spacing: f64,
     },
-    /// A tetrahedron outside the dihedral-angle bounds ([`MIN_DIHEDRAL_BOUND_DEG`](super::MIN_DIHEDRAL_BOUND_DEG),
-    /// [`MAX_DIHEDRAL_BOUND_DEG`](super::MAX_DIHEDRAL_BOUND_DEG)) that extra warping could not
-    /// remove: the mesher refuses rather than return it.
+    /// A vertex where the surface's triangles form two or more fans that meet only at that vertex
+    /// (a "bowtie": two solids touching at a point, or a cone pinched to a point). Every edge may be
+    /// manifold, but the surface is not a 2-manifold there, and no lattice spacing resolves it.
     #[error(
-        "a tetrahedron near ({:.6e}, {:.6e}, {:.6e}) has dihedral angles from {min_deg:.2}° to {max_deg:.2}°, outside the bounds, at spacing {spacing} m; try a slightly different spacing",
+        "the surface is not manifold: non-manifold vertex {vertex}: its triangles form {fans} fans that meet only at this vertex (one of them contains triangle {triangle})"
+    )]
+    NonManifoldVertex {
+        /// The vertex (in the input's numbering, the first of bit-identical copies).
+        vertex: usize,
+        /// How many fans of triangles meet there (2 or more).
+        fans: usize,
+        /// The lowest-numbered triangle at the vertex.
+        triangle: usize,
+    },
+    /// Two triangles of the surface intersect (or touch) away from the vertices and edges they
+    /// share: the surface is self-intersecting and bounds no well-defined solid. No lattice spacing
+    /// resolves it; the surface must be repaired.
+    #[error("the surface is self-intersecting: triangles {first} and {second} intersect")]
+    SelfIntersecting {
+        /// The lower-numbered triangle of the first intersecting pair found (by that number, then
+        /// the other's).
+        first: usize,
+        /// The other triangle.
+        second: usize,
+    },
+    /// parry3d could not build its query structure (triangle BVH and pseudo-normals) over the
+    /// surface.
+    #[error("the surface's query structure could not be built: {reason}")]
+    SurfaceQuery {
+        /// parry3d's message.
+        reason: String,
+    },
+    /// An output tetrahedron whose volume is not positive once its vertices are warped: it would
+    /// overlap its neighbours. The paper's angle bounds exclude this; the mesher refuses rather
+    /// than reorient it.
+    #[error(
+        "internal error: a tetrahedron near ({:.6e}, {:.6e}, {:.6e}) is inverted (volume {volume:e} m³) at spacing {spacing} m",
         point[0], point[1], point[2]
     )]
-    AngleBound {
+    InvertedTetrahedron {
         /// Its centroid (m).
         point: [f64; 3],
-        /// Its smallest dihedral angle (°).
-        min_deg: f64,
-        /// Its largest dihedral angle (°).
-        max_deg: f64,
+        /// Its signed volume (m³), zero or negative.
+        volume: f64,
+        /// The spacing used (m).
+        spacing: f64,
+    },
+    /// An invariant of the algorithm does not hold (a bug, not a property of the input): the
+    /// mesher refuses rather than return a mesh it cannot vouch for.
+    #[error(
+        "internal error: {what}, near ({:.6e}, {:.6e}, {:.6e}) at spacing {spacing} m",
+        point[0], point[1], point[2]
+    )]
+    BrokenInvariant {
+        /// What failed.
+        what: &'static str,
+        /// Where (m).
+        point: [f64; 3],
         /// The spacing used (m).
         spacing: f64,
     },

@@ -16,8 +16,9 @@
 
 /// What the stencils need to know about the lattice and the cut points.
 pub(crate) trait StencilLattice {
-    /// The output vertex id of the cut point on the edge `a`–`b` (one +, one −).
-    fn cut(&self, a: u32, b: u32) -> u32;
+    /// The output vertex id of the cut point on the edge `a`–`b` (one +, one −); `None` if it has
+    /// none, which the signs rule out.
+    fn cut(&self, a: u32, b: u32) -> Option<u32>;
     /// Half-step lattice coordinates of vertex `id` (black: all even, red: all odd).
     fn half_coords(&self, id: u32) -> [i64; 3];
     /// Whether `id` is a red (cube-centre) vertex.
@@ -143,15 +144,41 @@ fn split_prism(
     false
 }
 
+/// Why a stencil could not be applied: both are excluded by construction, and reported rather than
+/// assumed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum StencilFailure {
+    /// A +/− edge without a cut point.
+    MissingCut,
+    /// A prism whose fixed face diagonals form a cycle.
+    CyclicPrism,
+}
+
+impl StencilFailure {
+    pub(crate) fn describe(self) -> &'static str {
+        match self {
+            StencilFailure::MissingCut => {
+                "a lattice edge with an inside and an outside end has no cut point"
+            }
+            StencilFailure::CyclicPrism => {
+                "a prism's face diagonals form a cycle, so it cannot be split into tetrahedra"
+            }
+        }
+    }
+}
+
 /// Fill one BCC tetrahedron `tet` (`[b0, b1, r0, r1]`) with vertex signs `signs` (+1 inside,
 /// −1 outside, 0 on the surface), appending output tetrahedra (any orientation) to `out`.
-/// Returns false only if a prism could not be split, which the face rules rule out.
+///
+/// # Errors
+/// [`StencilFailure`] (and nothing written for the prism) if a cut point is missing or a prism
+/// cannot be split, which the signs and the face rules rule out.
 pub(crate) fn fill<L: StencilLattice>(
     lattice: &L,
     tet: [u32; 4],
     signs: [i8; 4],
     out: &mut Vec<[u32; 4]>,
-) -> bool {
+) -> Result<(), StencilFailure> {
     let mut plus = [0usize; 4];
     let mut minus = [0usize; 4];
     let mut zero = [0usize; 4];
@@ -173,22 +200,31 @@ pub(crate) fn fill<L: StencilLattice>(
         }
     }
     let v = |i: usize| tet[i];
-    let cut = |i: usize, j: usize| lattice.cut(tet[i], tet[j]);
+    let cut = |i: usize, j: usize| {
+        lattice
+            .cut(tet[i], tet[j])
+            .ok_or(StencilFailure::MissingCut)
+    };
     match (np, nn) {
         // Nothing inside; a tetrahedron with all four vertices on the surface is the caller's choice.
         (0, _) => {}
         (_, 0) => out.push(tet),
         (1, 3) => {
             let p = plus[0];
-            out.push([v(p), cut(p, minus[0]), cut(p, minus[1]), cut(p, minus[2])]);
+            out.push([
+                v(p),
+                cut(p, minus[0])?,
+                cut(p, minus[1])?,
+                cut(p, minus[2])?,
+            ]);
         }
         (1, 2) => {
             let p = plus[0];
-            out.push([v(p), v(zero[0]), cut(p, minus[0]), cut(p, minus[1])]);
+            out.push([v(p), v(zero[0]), cut(p, minus[0])?, cut(p, minus[1])?]);
         }
         (1, 1) => {
             let p = plus[0];
-            out.push([v(p), v(zero[0]), v(zero[1]), cut(p, minus[0])]);
+            out.push([v(p), v(zero[0]), v(zero[1]), cut(p, minus[0])?]);
         }
         (2, 1) => {
             // A pyramid with apex the zero vertex over the quad in the face (p0, p1, n).
@@ -196,32 +232,78 @@ pub(crate) fn fill<L: StencilLattice>(
             let touched = face_diagonal(lattice, &tet, plus[0], plus[1], n);
             let other = if touched == plus[0] { plus[1] } else { plus[0] };
             let z = v(zero[0]);
-            out.push([z, v(touched), v(other), cut(other, n)]);
-            out.push([z, v(touched), cut(other, n), cut(touched, n)]);
+            let (cut_other, cut_touched) = (cut(other, n)?, cut(touched, n)?);
+            out.push([z, v(touched), v(other), cut_other]);
+            out.push([z, v(touched), cut_other, cut_touched]);
         }
         (2, 2) => {
             let (p0, p1) = (plus[0], plus[1]);
             let (n0, n1) = (minus[0], minus[1]);
-            let a = [v(p0), cut(p0, n0), cut(p0, n1)];
-            let b = [v(p1), cut(p1, n0), cut(p1, n1)];
+            let a = [v(p0), cut(p0, n0)?, cut(p0, n1)?];
+            let b = [v(p1), cut(p1, n0)?, cut(p1, n1)?];
             let d01 = face_diagonal(lattice, &tet, p0, p1, n0) == p0;
             let d02 = face_diagonal(lattice, &tet, p0, p1, n1) == p0;
-            return split_prism(a, b, [Some(d01), Some(d02), None], out);
+            if !split_prism(a, b, [Some(d01), Some(d02), None], out) {
+                return Err(StencilFailure::CyclicPrism);
+            }
         }
         (3, 1) => {
             let n = minus[0];
             let a = [v(plus[0]), v(plus[1]), v(plus[2])];
-            let b = [cut(plus[0], n), cut(plus[1], n), cut(plus[2], n)];
+            let b = [cut(plus[0], n)?, cut(plus[1], n)?, cut(plus[2], n)?];
             let rule =
                 |i: usize, j: usize| face_diagonal(lattice, &tet, plus[i], plus[j], n) == plus[i];
-            return split_prism(
+            if !split_prism(
                 a,
                 b,
                 [Some(rule(0, 1)), Some(rule(0, 2)), Some(rule(1, 2))],
                 out,
-            );
+            ) {
+                return Err(StencilFailure::CyclicPrism);
+            }
         }
         _ => {}
     }
-    true
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A lattice that has lost every cut point.
+    struct NoCuts;
+
+    impl StencilLattice for NoCuts {
+        fn cut(&self, _: u32, _: u32) -> Option<u32> {
+            None
+        }
+        fn half_coords(&self, id: u32) -> [i64; 3] {
+            [[0, 0, 0], [2, 0, 0], [1, 1, -1], [1, 1, 1]][id as usize]
+        }
+        fn is_red(&self, id: u32) -> bool {
+            id >= 2
+        }
+    }
+
+    /// A missing cut point is an error, not a panic, in every stencil that needs one; the stencils
+    /// that need none still apply.
+    #[test]
+    fn a_missing_cut_point_is_reported() {
+        let mut out = Vec::new();
+        for signs in [
+            [1, -1, -1, -1],
+            [1, 1, -1, 0],
+            [1, 1, -1, -1],
+            [1, 1, 1, -1],
+        ] {
+            assert_eq!(
+                fill(&NoCuts, [0, 1, 2, 3], signs, &mut out),
+                Err(StencilFailure::MissingCut),
+                "{signs:?}"
+            );
+        }
+        assert_eq!(fill(&NoCuts, [0, 1, 2, 3], [1, 1, 0, 0], &mut out), Ok(()));
+        assert_eq!(out, vec![[0, 1, 2, 3]]);
+    }
 }

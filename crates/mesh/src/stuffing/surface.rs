@@ -99,10 +99,113 @@ fn check_closed_manifold(triangles: &[[u32; 3]], renumber: &[u32]) -> Result<(),
         }
         start = end;
     }
+    if let Some((_, error)) = worst {
+        return Err(error);
+    }
+    let welded: Vec<[u32; 3]> = triangles
+        .iter()
+        .map(|t| t.map(|v| renumber[v as usize]))
+        .collect();
+    check_vertex_fans(&welded, &uses)
+}
+
+/// With every edge in exactly two triangles, check that the triangles at each vertex form one fan
+/// (a bowtie vertex has two or more, joined only at the vertex). `triangles` are in welded
+/// numbering; `uses` is [`check_closed_manifold`]'s sorted list of edge uses, two per edge.
+fn check_vertex_fans(
+    triangles: &[[u32; 3]],
+    uses: &[(u64, bool, u32)],
+) -> Result<(), StuffingError> {
+    // Union-find over the corners (triangle, vertex): the two triangles of an edge join their
+    // corners at both of its ends.
+    let corner = |t: u32, v: u32| -> usize {
+        let k = triangles[t as usize]
+            .iter()
+            .position(|&x| x == v)
+            .unwrap_or(0);
+        3 * t as usize + k
+    };
+    let mut parent: Vec<usize> = (0..3 * triangles.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for pair in uses.chunks_exact(2) {
+        let (lo, hi) = ((pair[0].0 >> 32) as u32, (pair[0].0 & 0xffff_ffff) as u32);
+        for v in [lo, hi] {
+            let (a, b) = (corner(pair[0].2, v), corner(pair[1].2, v));
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            parent[ra] = rb;
+        }
+    }
+    // Fans per vertex, and the lowest triangle at it: (vertex, root) pairs, deduplicated.
+    let mut fans: Vec<(u32, usize, u32)> = Vec::with_capacity(3 * triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        for (k, &v) in tri.iter().enumerate() {
+            fans.push((v, root(&mut parent, 3 * t + k), t as u32));
+        }
+    }
+    fans.sort_unstable();
+    let mut worst: Option<(usize, usize, usize)> = None;
+    let mut start = 0;
+    while start < fans.len() {
+        let mut end = start + 1;
+        while end < fans.len() && fans[end].0 == fans[start].0 {
+            end += 1;
+        }
+        let group = &fans[start..end];
+        let count = 1 + group.windows(2).filter(|w| w[0].1 != w[1].1).count();
+        if count > 1 {
+            let vertex = group[0].0 as usize;
+            let triangle = group.iter().map(|f| f.2).min().unwrap_or(0) as usize;
+            if worst.is_none_or(|(_, _, t)| triangle < t) {
+                worst = Some((vertex, count, triangle));
+            }
+        }
+        start = end;
+    }
     match worst {
-        Some((_, error)) => Err(error),
+        Some((vertex, fans, triangle)) => Err(StuffingError::NonManifoldVertex {
+            vertex,
+            fans,
+            triangle,
+        }),
         None => Ok(()),
     }
+}
+
+/// The first pair of triangles (by the lower index, then the other) that intersect away from the
+/// vertices they share, if any. Candidate pairs come from parry's BVH (bounding boxes that
+/// overlap); each is decided by exact predicates (module `intersect`).
+fn first_self_intersection(
+    shape: &ParryMesh,
+    triangles: &[[u32; 3]],
+    positions: &[Vec3],
+) -> Option<(usize, usize)> {
+    use rayon::prelude::*;
+    let bvh = shape.bvh();
+    (0..triangles.len())
+        .into_par_iter()
+        .filter_map(|i| {
+            let aabb = shape.triangle(i as u32).local_aabb();
+            let mut hits: Vec<u32> = bvh
+                .intersect_aabb(&aabb)
+                .filter(|&j| j as usize > i)
+                .filter(|&j| {
+                    super::intersect::triangles_intersect(
+                        triangles[i],
+                        triangles[j as usize],
+                        |v| positions[v as usize],
+                    )
+                })
+                .collect();
+            hits.sort_unstable();
+            hits.first().map(|&j| (i, j as usize))
+        })
+        .min()
 }
 
 impl ClosedSurface {
@@ -117,8 +220,12 @@ impl ClosedSurface {
     /// [`StuffingError::OpenEdge`] (an edge in one triangle), [`StuffingError::NonManifoldEdge`]
     /// (in three or more), [`StuffingError::InconsistentOrientation`] (two neighbours disagree),
     /// naming the offending edge whose lowest triangle index is smallest;
-    /// [`StuffingError::ZeroVolume`] for a flat closed surface. Empty input and NaN coordinates are
-    /// refused earlier, by [`TriMesh::new`].
+    /// [`StuffingError::NonManifoldVertex`] for a vertex whose triangles form two or more fans
+    /// (the one whose lowest triangle index is smallest); [`StuffingError::ZeroVolume`] for a flat
+    /// closed surface; [`StuffingError::SelfIntersecting`] for two triangles that meet away from
+    /// their shared vertices (decided exactly); [`StuffingError::SurfaceQuery`] if parry3d cannot
+    /// build its query structure. Empty input and NaN coordinates are refused earlier, by
+    /// [`TriMesh::new`].
     pub fn new(mesh: &TriMesh) -> Result<Self, StuffingError> {
         let positions = mesh.positions();
         // Weld bit-identical positions: the first index of each position stands for all.
@@ -168,9 +275,12 @@ impl ClosedSurface {
         }
         let vertices: Vec<PVec> = positions.iter().map(to_parry).collect();
         let shape = ParryMesh::with_flags(vertices, triangles.clone(), TriMeshFlags::ORIENTED)
-            .map_err(|_| crate::MeshError::NoElements {
-                kind: crate::ElementKind::Triangle,
+            .map_err(|e| StuffingError::SurfaceQuery {
+                reason: e.to_string(),
             })?;
+        if let Some((first, second)) = first_self_intersection(&shape, &triangles, positions) {
+            return Err(StuffingError::SelfIntersecting { first, second });
+        }
         let surface = TriMesh::new(positions.to_vec(), triangles)?;
         Ok(ClosedSurface {
             surface,
