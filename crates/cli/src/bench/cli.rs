@@ -130,6 +130,17 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         return crate::sph::bench::run(&crate::sph::bench::SphBenchOptions::from_args(args))
             .map_err(|e| BenchError::Scene(e.to_string()));
     }
+    // What a killed earlier run left of the files this one writes (the shared cache aside: another
+    // run may be writing there).
+    let outputs: Vec<&std::path::Path> = [&args.json, &args.csv, &args.plot]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    crate::output::remove_leftovers_of(&outputs).map_err(leftover_error)?;
+    if let Some(dir) = &args.frames {
+        crate::output::remove_leftovers(&[dir]).map_err(leftover_error)?;
+    }
     let begin = Instant::now();
     let quiet = args.quiet;
     let mut progress = |line: &str| {
@@ -307,6 +318,20 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         plot_pareto(path, &plotted, &problem.name)?;
     }
     Ok(())
+}
+
+/// A failure to remove a leftover temporary file, as the output error it is.
+fn leftover_error(e: crate::output::OutputError) -> BenchError {
+    match e {
+        crate::output::OutputError::Io { path, source } => BenchError::Output {
+            path,
+            reason: source.to_string(),
+        },
+        e => BenchError::Output {
+            path: PathBuf::new(),
+            reason: e.to_string(),
+        },
+    }
 }
 
 fn write_outputs(args: &BenchArgs, records: &[Record]) -> Result<(), BenchError> {

@@ -1,6 +1,6 @@
 //! `hooke bench --sph COUNTS`: the cost of a 2D WCSPH step against particle count, split by phase.
 //!
-//! The set-up is hooke-sph's `examples/step_cost.rs`: for each count N, a square column of
+//! The set-up ([`step_cost_column`]): for each count N, a square column of
 //! about N particles (side 1 m, Δx = 1/round(√N)) in the corner of a 2 m × 1.5 m tank with open top
 //! and three layers of wall particles, SCENES.md's parameters otherwise (h = 1.3 Δx, c₀ = 10·√(2gH),
 //! α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up, then `--repeats`
@@ -16,8 +16,9 @@
 use std::path::Path;
 use std::time::Instant;
 
-use hooke_sph::scenes::step_cost_column;
-use hooke_sph::Fluid;
+use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
+use hooke_sph::{Fluid, FluidParams};
+use nalgebra::SVector;
 use plotters::coord::combinators::IntoLogRange;
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -193,6 +194,26 @@ enum JsonRecord {
     Scene(SphSceneRecord),
 }
 
+/// The step-cost benchmark's fluid: the dam break's
+/// parameters on a 1 m square column of about `particles` fluid particles (Δx = 1/round(√particles),
+/// at least 2 across) in a 2 × 1.5 m tank walled at the sides and bottom, with `WALL_LAYERS` layers
+/// of boundary particles and the sound speed from the column's height.
+fn step_cost_column(particles: usize) -> ColumnInTank<2> {
+    let side = (particles as f64).sqrt().round().max(2.0);
+    ColumnInTank::<2> {
+        tank_min: SVector::zeros(),
+        tank_max: SVector::<f64, 2>::new(2.0, 1.5),
+        walls: [[true, true], [true, false]],
+        column_max: SVector::<f64, 2>::new(1.0, 1.0),
+        dx: 1.0 / side,
+        layers: WALL_LAYERS,
+        params: FluidParams {
+            sound_speed: 0.0,
+            ..FluidParams::default()
+        },
+    }
+}
+
 /// Measures one count (see the [module](self)).
 pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCliError> {
     let spec = step_cost_column(count);
@@ -290,6 +311,9 @@ impl<'a> SphBenchOptions<'a> {
 /// Runs `hooke bench --sph`: measures every count and scene, prints the tables, writes the files
 /// asked for (`--json`: one record per entry, in order; `--plot`: the counts).
 pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
+    // What a killed earlier run left of the files this one writes.
+    let outputs: Vec<&Path> = [options.json, options.plot].into_iter().flatten().collect();
+    crate::output::remove_leftovers_of(&outputs)?;
     let entries = parse_entries(options.counts)?;
     let steps = u32::try_from(options.steps)
         .ok()
@@ -379,16 +403,8 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> SphCliError {
 fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
     // Registers the embedded font (shared with the preview).
     let text = super::preview::font_ready();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".sph-bench-")
-        .suffix(".png")
-        .tempfile_in(dir)
-        .map_err(|e| SphCliError::io(dir, e))?
-        .into_temp_path();
+    const SIZE: (u32, u32) = (900, 600);
+    let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     type Column = fn(&SphBenchRecord) -> f64;
     let series: [(&str, Column, RGBColor); 5] = [
         ("step", |r| r.ms_per_step, RGBColor(30, 32, 36)),
@@ -418,8 +434,8 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
         let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
         lo..hi.max(lo * 10.0)
     };
-    let draw = || -> Result<(), String> {
-        let area = BitMapBackend::new(&tmp, (900, 600)).into_drawing_area();
+    let mut draw = || -> Result<(), String> {
+        let area = BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area();
         area.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut builder = ChartBuilder::on(&area);
         builder
@@ -484,9 +500,7 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
         area.present().map_err(|e| e.to_string())
     };
     draw().map_err(|e| plot_error(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| SphCliError::io(path, e.error))?;
-    Ok(())
+    Ok(crate::output::write_png(path, &pixels, SIZE.0, SIZE.1)?)
 }
 
 #[cfg(test)]

@@ -185,6 +185,31 @@ fn within_bounds(a: &Vec3, b: &Vec3, c: &Vec3, d: &Vec3) -> bool {
     })
 }
 
+/// Where vertex `id` of the stuffed mesh is: a cut point (ids past the lattice's vertices), a
+/// lattice vertex warped onto a cut point, or a lattice vertex where it is.
+fn vertex_position(
+    id: u32,
+    lattice: &BccLattice,
+    cuts: &[Cut],
+    warped: &HashMap<u32, Vec3>,
+) -> Vec3 {
+    let lattice_count = lattice.vertex_count() as u32;
+    if id >= lattice_count {
+        cuts[(id - lattice_count) as usize].point
+    } else {
+        warped
+            .get(&id)
+            .copied()
+            .unwrap_or_else(|| lattice.position(id))
+    }
+}
+
+/// [`within_bounds`] of tetrahedron `t`, its vertices placed by `position`.
+fn tet_within_bounds(t: &[u32; 4], position: impl Fn(u32) -> Vec3) -> bool {
+    let [a, b, c, d] = t.map(position);
+    within_bounds(&a, &b, &c, &d)
+}
+
 /// Fill a closed surface with tetrahedra by isosurface stuffing on a BCC lattice of spacing
 /// `options.spacing`.
 ///
@@ -243,24 +268,12 @@ pub fn tetrahedralize(
             },
         )?;
     let lattice_count = lattice.vertex_count() as u32;
-    let position = |id: u32| -> Vec3 {
-        if id >= lattice_count {
-            cuts[(id - lattice_count) as usize].point
-        } else {
-            warped
-                .get(&id)
-                .copied()
-                .unwrap_or_else(|| lattice.position(id))
-        }
-    };
+    let position = |id: u32| vertex_position(id, &lattice, &cuts, &warped);
     // An all-zero tetrahedron may be kept only within the angle bounds; the centroid rule makes the
     // first choice, and the manifold repair the last.
     let candidates: Vec<[u32; 4]> = all_zero
         .into_iter()
-        .filter(|t| {
-            let [a, b, c, d] = t.map(position);
-            within_bounds(&a, &b, &c, &d)
-        })
+        .filter(|t| tet_within_bounds(t, position))
         .collect();
     let mut kept: Vec<bool> = candidates
         .iter()
@@ -626,22 +639,10 @@ fn keep_angle_bounds(
     }
     for round in 0.. {
         let (stenciled, all_zero) = fill_lattice(lattice, cut_index, signs);
-        let position = |id: u32| -> Vec3 {
-            if id >= lattice_count {
-                cuts[(id - lattice_count) as usize].point
-            } else {
-                warped
-                    .get(&id)
-                    .copied()
-                    .unwrap_or_else(|| lattice.position(id))
-            }
-        };
+        let position = |id: u32| vertex_position(id, lattice, cuts, warped);
         let bad: Vec<[u32; 4]> = stenciled
             .par_iter()
-            .filter(|t| {
-                let [a, b, c, d] = t.map(position);
-                !within_bounds(&a, &b, &c, &d)
-            })
+            .filter(|t| !tet_within_bounds(t, position))
             .copied()
             .collect();
         let Some(first) = bad.first() else {
