@@ -31,23 +31,25 @@ const DEFAULT_SCENE: &str = "cloth-40";
 
 /// `summary.json` is written after every this many frames during a run, besides at its end, so
 /// that a long run can be followed and a killed one leaves its records up to at most this many
-/// frames before the kill. The summary of n frames is about [`SUMMARY_RECORD_BYTES`]·n = 500·n bytes, so rewriting it every K
-/// frames costs about 500·n/K bytes a frame: with K = 100, less than a 10-vertex OBJ frame (about
-/// 7 kB) up to n ≈ 1,400 and less than a cloth-40 frame (about 120 kB) up to n ≈ 24,000, while the
-/// built-in scenes run 100 to 600 frames, whose summary then lags by at most a third of a second
-/// to a few seconds of computation. Beyond [`WARN_FRAMES`] the run is warned about.
+/// frames before the kill. The summary of n frames is about [`SUMMARY_RECORD_BYTES`]·n bytes, so
+/// rewriting it every K frames costs about 400·n/K bytes a frame: with K = 100, less than a
+/// cloth-10 OBJ frame (about 8 kB) up to n ≈ 2,000 and less than a cloth-40 frame (about 140 kB)
+/// up to n ≈ 35,000. The built-in scenes run 30 to 300 frames, at up to a few hundred a second, so
+/// their summary lags by a second of computation at most. Beyond [`WARN_FRAMES`] the run is warned
+/// of.
 const SUMMARY_EVERY: usize = 100;
 
-/// About how many bytes a frame's record takes in `summary.json` (pretty-printed).
-const SUMMARY_RECORD_BYTES: u64 = 500;
+/// About how many bytes a frame's record takes in `summary.json` (pretty-printed; 380 for Newton's
+/// records of cloth-10, which carry the solver's fields).
+const SUMMARY_RECORD_BYTES: u64 = 400;
 
-/// A run of more frames than this is warned about before it starts: 10,000 frames is more than 15
-/// times the longest built-in scene, and from there on the periodic `summary.json` (several MB)
-/// costs more than the frames of a small scene.
+/// A run of more frames than this is warned of before it starts: more than 30 times the longest
+/// built-in scene (300 frames), and from there on the periodic `summary.json` (4 MB and more)
+/// costs about as much as the frames of a small scene.
 const WARN_FRAMES: usize = 10_000;
 
-/// A run whose frames are estimated (from the size of its first frame file) to take more than this
-/// many bytes is warned about before it starts: 1 GB.
+/// A run whose frames are estimated (from the size of a frame already written) to take more than
+/// this many bytes is warned of before it starts: 1 GB.
 const WARN_BYTES: u64 = 1_000_000_000;
 
 #[derive(Parser)]
@@ -760,7 +762,7 @@ fn warn_of_large_output(steps: usize, frame: &Path, out: &Path) {
     }
 }
 
-/// `bytes` with a decimal unit, to three significant digits: `512 B`, `1.23 MB`, `4.56 TB`.
+/// `bytes` with a decimal unit, to three significant digits: `512 B`, `1.23 MB`, `45.6 TB`.
 fn human_bytes(bytes: u64) -> String {
     let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
     let mut value = bytes as f64;
@@ -769,11 +771,13 @@ fn human_bytes(bytes: u64) -> String {
         value /= 1000.0;
         unit += 1;
     }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{value:.3} {}", units[unit])
-    }
+    let decimals = match value {
+        _ if unit == 0 => 0,
+        v if v < 9.995 => 2,
+        v if v < 99.95 => 1,
+        _ => 0,
+    };
+    format!("{value:.decimals$} {}", units[unit])
 }
 
 /// The value of an optional flag parsed as `T`, or a [`CliError::Argument`] naming the flag.
@@ -868,5 +872,22 @@ fn rate_record(rate: crate::sim::RateSource) -> output::RateRecord {
     output::RateRecord {
         rate: rate.rate(),
         source: source.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_counts_read_with_three_digits() {
+        assert_eq!(human_bytes(0), "0 B");
+        assert_eq!(human_bytes(999), "999 B");
+        assert_eq!(human_bytes(1_000), "1.00 kB");
+        assert_eq!(human_bytes(5_286), "5.29 kB");
+        assert_eq!(human_bytes(45_600_000), "45.6 MB");
+        assert_eq!(human_bytes(500_000_000_000), "500 GB");
+        assert_eq!(human_bytes(999_600_000), "1.00 GB");
+        assert_eq!(human_bytes(u64::MAX), "18.4 EB");
     }
 }
