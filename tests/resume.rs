@@ -199,6 +199,14 @@ fn kill_test_args(dir: &Path) -> Vec<String> {
     .collect()
 }
 
+/// The run of [`kill_test_args`] in a new directory, uninterrupted.
+fn uninterrupted_kill_test_run() -> tempfile::TempDir {
+    let whole = tempfile::tempdir().unwrap();
+    let args = kill_test_args(whole.path());
+    ok(&hooke(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+    whole
+}
+
 /// Runs [`kill_test_args`] into `dir` with the test hook halting it at `halt`, and kills the
 /// process (SIGKILL on Unix) once it reports that it has halted there.
 fn run_and_kill_at(dir: &Path, halt: &str) {
@@ -249,10 +257,8 @@ fn names(dir: &Path) -> Vec<String> {
 
 #[test]
 fn a_run_killed_while_writing_a_frame_resumes() {
-    let whole = tempfile::tempdir().unwrap();
+    let whole = uninterrupted_kill_test_run();
     let killed = tempfile::tempdir().unwrap();
-    let args = kill_test_args(whole.path());
-    ok(&hooke(&args.iter().map(String::as_str).collect::<Vec<_>>()));
 
     // Killed halfway through frame 7's temporary file, after the checkpoint at frame 6.
     run_and_kill_at(killed.path(), "in-frame:7");
@@ -278,10 +284,8 @@ fn a_run_killed_while_writing_a_frame_resumes() {
 
 #[test]
 fn a_run_killed_after_a_frame_resumes() {
-    let whole = tempfile::tempdir().unwrap();
+    let whole = uninterrupted_kill_test_run();
     let killed = tempfile::tempdir().unwrap();
-    let args = kill_test_args(whole.path());
-    ok(&hooke(&args.iter().map(String::as_str).collect::<Vec<_>>()));
 
     // Killed after frame 10, a frame past the checkpoint at 9: frame 10 is written again.
     run_and_kill_at(killed.path(), "after-frame:10");

@@ -808,20 +808,9 @@ mod tests {
             let (stenciled, _) =
                 keep_angle_bounds(&lattice, &cuts, &cut_index, &mut signs, &mut warped)
                     .unwrap_or_else(|(p, lo, hi)| panic!("{lo}°–{hi}° at {p:?}"));
-            let count = n as u32;
-            let position = |id: u32| {
-                if id >= count {
-                    cuts[(id - count) as usize].point
-                } else {
-                    warped
-                        .get(&id)
-                        .copied()
-                        .unwrap_or_else(|| lattice.position(id))
-                }
-            };
+            let position = |id: u32| vertex_position(id, &lattice, &cuts, &warped);
             for t in &stenciled {
-                let [a, b, c, d] = t.map(position);
-                assert!(within_bounds(&a, &b, &c, &d), "{t:?}");
+                assert!(tet_within_bounds(t, position), "{t:?}");
             }
         }
     }
