@@ -100,6 +100,10 @@ pub struct BenchArgs {
     /// scene whole as `hooke run` does and reports its wall time and particle-steps per second.
     #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"])]
     pub sph: Option<String>,
+    /// With --sph: number the column's fluid particles in a fixed random order, as a long run's
+    /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
+    #[arg(long, requires = "sph")]
+    pub sph_shuffle: bool,
     /// No progress lines on stderr.
     #[arg(long, short)]
     pub quiet: bool,

@@ -215,12 +215,36 @@ fn step_cost_column(particles: usize) -> ColumnInTank<2> {
 }
 
 /// Measures one count (see the [module](self)).
-pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCliError> {
+///
+/// With `shuffle`, the fluid particles are numbered in a fixed pseudo-random order (a Fisher-Yates
+/// shuffle driven by a fixed linear congruential generator: the same order every run), as a long
+/// run's mixing leaves them.
+pub(crate) fn measure(
+    count: usize,
+    steps: u32,
+    shuffle: bool,
+) -> Result<SphBenchRecord, SphCliError> {
     let spec = step_cost_column(count);
     let name = format!("bench N={count}");
     let fail = |what: &str, e| SphCliError::fluid(&name, what, e);
-    let mut fluid =
-        Fluid::new(spec.build().map_err(|e| fail("setup", e))?).map_err(|e| fail("setup", e))?;
+    let mut setup = spec.build().map_err(|e| fail("setup", e))?;
+    if shuffle {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        for i in (1..setup.fluid_positions.len()).rev() {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let j = ((state >> 33) % (i as u64 + 1)) as usize;
+            setup.fluid_positions.swap(i, j);
+            if !setup.fluid_velocities.is_empty() {
+                setup.fluid_velocities.swap(i, j);
+            }
+            if !setup.fluid_densities.is_empty() {
+                setup.fluid_densities.swap(i, j);
+            }
+        }
+    }
+    let mut fluid = Fluid::new(setup).map_err(|e| fail("setup", e))?;
     for _ in 0..2 {
         fluid.step().map_err(|e| fail("warm-up step", e))?;
     }
@@ -293,6 +317,8 @@ pub(crate) struct SphBenchOptions<'a> {
     pub plot: Option<&'a Path>,
     /// `--quiet`.
     pub quiet: bool,
+    /// `--sph-shuffle`: the fluid particles numbered in a random order (see [`measure`]).
+    pub shuffle: bool,
 }
 
 impl<'a> SphBenchOptions<'a> {
@@ -304,6 +330,7 @@ impl<'a> SphBenchOptions<'a> {
             json: args.json.as_deref(),
             plot: args.plot.as_deref(),
             quiet: args.quiet,
+            shuffle: args.sph_shuffle,
         }
     }
 }
@@ -331,7 +358,7 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
                 if !options.quiet {
                     eprintln!("[{at:7.1} s] sph N={count}: {steps} timed steps");
                 }
-                measured.push(JsonRecord::Count(measure(count, steps)?));
+                measured.push(JsonRecord::Count(measure(count, steps, options.shuffle)?));
             }
             Entry::Scene(name) => {
                 if !options.quiet {
@@ -357,7 +384,12 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
         .collect();
     if !records.is_empty() {
         println!(
-            "2D WCSPH step cost (column in a tank, the dam break's parameters (docs/sph.md)), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            "2D WCSPH step cost (column in a tank, the dam break's parameters (docs/sph.md)){}, {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            if options.shuffle {
+                ", particles numbered at random"
+            } else {
+                ""
+            },
             rayon_threads()
         );
         print!("{}", format_table(&records));
@@ -526,9 +558,15 @@ mod tests {
 
     #[test]
     fn a_small_count_measures() {
-        let r = measure(400, 1).unwrap();
+        let r = measure(400, 1, false).unwrap();
         assert_eq!(r.fluid_particles, 400);
         assert!(r.ms_per_step > 0.0 && r.particle_steps_per_s > 0.0);
+        let walls = r.boundary_particles;
         assert!(format_table(&[r]).lines().count() == 2);
+        // Shuffled: the same particles, measured alike.
+        let shuffled = measure(400, 1, true).unwrap();
+        assert_eq!(shuffled.fluid_particles, 400);
+        assert_eq!(shuffled.boundary_particles, walls);
+        assert!(shuffled.ms_per_step > 0.0);
     }
 }

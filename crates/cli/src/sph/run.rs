@@ -282,7 +282,7 @@ fn run_scene<const D: usize>(
     let frames_dir = options.out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| SphCliError::io(&frames_dir, e))?;
     remove_stale_frames(&frames_dir)?;
-    crate::output::remove_leftovers(&[&options.out, &frames_dir])?;
+    crate::output::remove_leftovers(&[options.out, &frames_dir])?;
     write_particles(
         &options.out.join("walls.vtk"),
         fluid.boundary_positions(),
