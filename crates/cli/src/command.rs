@@ -162,9 +162,9 @@ pub(crate) struct RunArgs {
     checkpoint_every: Option<usize>,
     /// Continue the run in DIR from its last checkpoint, with the checkpoint's scene and settings
     /// (no other argument but --quiet and --steps may be given): its frames and summary.json are
-    /// then those of a run that was never stopped. With --steps N, a finished or interrupted run
-    /// is extended (or, from a checkpoint at or before N, completed) to N frames, as if it had been
-    /// started with --steps N.
+    /// then those of a run that was never stopped. With --steps N the run goes on to frame N
+    /// instead: a finished or interrupted run is extended to N frames (N at least the checkpoint's
+    /// frame), leaving what a run started with --steps N leaves.
     #[arg(long, value_name = "DIR", conflicts_with_all = [
         "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "relaxation",
         "dx", "dt",
