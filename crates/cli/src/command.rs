@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::str::FromStr;
 use std::time::Instant;
 
-use crate::mesh::io::{save_obj, save_vtk_with_data, Frame, FrameData};
+use crate::mesh::io::{write_obj, write_vtk_with_data, Frame, FrameData};
 use crate::mesh::MeshError;
 use crate::sim::file::{load_scene, FrameFormat, SceneFileError};
 use crate::sim::scenes::{self, AnySetup, Setup};
@@ -16,17 +16,41 @@ use crate::sim::{
     parse_energy_limit, Integrator, LinearSolver, PinMethod, RelaxationPreset, SimError,
     Simulation, SolverOptions,
 };
+use crate::test_hook::Halt;
 use clap::{Parser, Subcommand, ValueEnum};
 use nalgebra::SVector;
 
 use output::{
-    progress_bar, render_preview, write_summary, write_timings, OutputError, PreviewInput,
-    PreviewObstacle, PreviewPositions, ResidualRecord, RunSummary, RunTimings,
-    SolverSettingsRecord, StepRecord, StepTiming,
+    progress_bar, remove_leftovers, render_preview, write_atomically, write_summary, write_timings,
+    OutputError, PreviewInput, PreviewObstacle, PreviewPositions, ResidualRecord, RunSummary,
+    RunTimings, SolverSettingsRecord, StepRecord, StepTiming,
 };
 
 /// The scene `hooke run` uses without an argument.
 const DEFAULT_SCENE: &str = "cloth-40";
+
+/// `summary.json` is written after every this many frames during a run, besides at its end, so
+/// that a long run can be followed and a killed one leaves its records up to at most this many
+/// frames before the kill. The summary of n frames is about [`SUMMARY_RECORD_BYTES`]·n bytes, so
+/// rewriting it every K frames costs about 400·n/K bytes a frame: with K = 100, less than a
+/// cloth-10 OBJ frame (about 8 kB) up to n ≈ 2,000 and less than a cloth-40 frame (about 140 kB)
+/// up to n ≈ 35,000. The built-in scenes run 30 to 300 frames, at up to a few hundred a second, so
+/// their summary lags by a second of computation at most. Beyond [`WARN_FRAMES`] the run is warned
+/// of.
+const SUMMARY_EVERY: usize = 100;
+
+/// About how many bytes a frame's record takes in `summary.json` (pretty-printed; 380 for Newton's
+/// records of cloth-10, which carry the solver's fields).
+const SUMMARY_RECORD_BYTES: u64 = 400;
+
+/// A run of more frames than this is warned of before it starts: more than 30 times the longest
+/// built-in scene (300 frames), and from there on the periodic `summary.json` (4 MB and more)
+/// costs about as much as the frames of a small scene.
+const WARN_FRAMES: usize = 10_000;
+
+/// A run whose frames are estimated (from the size of a frame already written) to take more than
+/// this many bytes is warned of before it starts: 1 GB.
+const WARN_BYTES: u64 = 1_000_000_000;
 
 #[derive(Parser)]
 #[command(
@@ -145,12 +169,14 @@ pub(crate) struct RunArgs {
     #[arg(long, value_name = "K")]
     checkpoint_every: Option<usize>,
     /// Continue the run in DIR from its last checkpoint, with the checkpoint's scene and settings
-    /// (no other argument but --quiet may be given): its frames and summary.json are then those of
-    /// a run that was never stopped.
+    /// (no other argument but --quiet and --steps may be given): its frames and summary.json are
+    /// then those of a run that was never stopped. With --steps N the run goes on to frame N
+    /// instead: a finished or interrupted run is extended to N frames (N at least the checkpoint's
+    /// frame), leaving what a run started with --steps N leaves.
     #[arg(long, value_name = "DIR", conflicts_with_all = [
         "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "relaxation",
         "factor_reuse",
-        "steps", "dx", "dt",
+        "dx", "dt",
         "substeps", "force", "energy_limit", "pin_method", "out", "format", "checkpoint_every",
     ])]
     #[serde(skip)]
@@ -234,6 +260,8 @@ enum CliError {
     Checkpoint(#[from] CheckpointError),
     #[error("stopped after frame {0} (--stop-after)")]
     Stopped(usize),
+    #[error("invalid HOOKE_TEST_HALT (a test hook): {0}")]
+    TestHook(String),
     #[error(transparent)]
     Sph(#[from] crate::sph::SphCliError),
 }
@@ -284,11 +312,14 @@ fn run(args: &RunArgs) -> Result<(), CliError> {
     let (resumed_args, resume) = match &args.resume {
         Some(dir) => {
             let point = Checkpoint::read(dir)?;
+            let recorded = point.args.for_checkpoint();
             let resumed = RunArgs {
                 out: dir.clone(),
                 quiet: args.quiet,
                 stop_after: args.stop_after,
-                ..point.args.for_checkpoint()
+                // --steps extends (or shortens, down to the checkpoint) the run.
+                steps: args.steps.or(recorded.steps),
+                ..recorded
             };
             (Some(resumed), Some(point))
         }
@@ -429,13 +460,37 @@ fn run_setup<const D: usize>(
         source,
     })?;
 
+    // The temporary files of a killed writer (a new run's directory may be a killed run's too).
+    remove_leftovers(&[&args.out, &frames_dir])?;
+    let halt = Halt::from_env().map_err(CliError::TestHook)?;
+
     let name = setup.name.clone();
     let steps = setup.steps;
     let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings)?;
-    let resumed = match resume {
-        Some(point) => Some(point.restore(&args.out, &mut sim)?),
-        None => None,
+    let (resumed, recorded_steps) = match resume {
+        Some(point) => {
+            let recorded_steps = point.args.steps;
+            (Some(point.restore(&args.out, &mut sim)?), recorded_steps)
+        }
+        None => (None, None),
     };
+    if let Some(resumed) = &resumed {
+        if resumed.frame > steps {
+            return Err(CliError::Argument {
+                name: "steps",
+                reason: format!(
+                    "{steps} is before the checkpoint's frame {}: a resumed run goes on from its \
+                     checkpoint",
+                    resumed.frame
+                ),
+            });
+        }
+        if recorded_steps != args.steps {
+            // The checkpoint records the new length at once: the same file as a run started with
+            // it writes there, and a resumption of this run (if it is stopped too) keeps the length.
+            Checkpoint::new(args, resumed.frame, &sim, &resumed.steps)?.write(&args.out)?;
+        }
+    }
     // Frames after the checkpoint (or, for a new run, every frame) are an earlier process's.
     remove_stale_frames(&frames_dir, resumed.as_ref().map(|r| r.frame))?;
     let mesh = sim.scene().mesh().clone();
@@ -445,6 +500,11 @@ fn run_setup<const D: usize>(
         Vec::new()
     };
     let pinned_flags = sim.scene().is_pinned().to_vec();
+    let extension = match format {
+        FrameFormat::Obj => "obj",
+        FrameFormat::Vtk => "vtk",
+    };
+    let frame_path = |index: usize| frames_dir.join(format!("frame_{index:04}.{extension}"));
     let write_frame = |index: usize, state: &crate::sim::State<D>| -> Result<(), CliError> {
         let frame = Frame {
             positions: &state.positions,
@@ -452,35 +512,38 @@ fn run_setup<const D: usize>(
             tetrahedra: mesh.tetrahedra(),
             lines: &lines,
         };
-        match format {
-            FrameFormat::Obj => {
-                save_obj(&frames_dir.join(format!("frame_{index:04}.obj")), &frame)?
+        // The lines, where there are any, are the springs in order.
+        let strain: Vec<f64> = if lines.is_empty() || matches!(format, FrameFormat::Obj) {
+            Vec::new()
+        } else {
+            mesh.springs()
+                .iter()
+                .map(|s| {
+                    let r = state.positions[s.i as usize] - state.positions[s.j as usize];
+                    r.norm() / s.rest_length - 1.0
+                })
+                .collect()
+        };
+        let data = FrameData {
+            velocities: Some(&state.velocities),
+            pinned: Some(&pinned_flags),
+            line_strain: (!lines.is_empty()).then_some(&strain[..]),
+        };
+        let write = |mut out: &mut dyn std::io::Write| match format {
+            FrameFormat::Obj => write_obj(&frame, &mut out),
+            FrameFormat::Vtk => write_vtk_with_data(&frame, &data, &mut out),
+        };
+        write_atomically(&frame_path(index), |out| {
+            if halt == Some(Halt::InFrame(index)) {
+                let mut bytes = Vec::new();
+                write(&mut bytes)?;
+                std::io::Write::write_all(out, &bytes[..bytes.len() / 2])?;
+                std::io::Write::flush(out)?;
+                out.get_ref().sync_all()?;
+                Halt::InFrame(index).halt();
             }
-            FrameFormat::Vtk => {
-                // The lines, where there are any, are the springs in order.
-                let strain: Vec<f64> = if lines.is_empty() {
-                    Vec::new()
-                } else {
-                    mesh.springs()
-                        .iter()
-                        .map(|s| {
-                            let r = state.positions[s.i as usize] - state.positions[s.j as usize];
-                            r.norm() / s.rest_length - 1.0
-                        })
-                        .collect()
-                };
-                let data = FrameData {
-                    velocities: Some(&state.velocities),
-                    pinned: Some(&pinned_flags),
-                    line_strain: (!lines.is_empty()).then_some(&strain[..]),
-                };
-                save_vtk_with_data(
-                    &frames_dir.join(format!("frame_{index:04}.vtk")),
-                    &frame,
-                    &data,
-                )?
-            }
-        }
+            write(out)
+        })?;
         Ok(())
     };
 
@@ -574,6 +637,7 @@ fn run_setup<const D: usize>(
             1
         }
     };
+    warn_of_large_output(steps, &frame_path(first - 1), &args.out);
     let progress = progress_bar(steps as u64, args.quiet);
     progress.inc(first as u64 - 1);
     let mut failure = None;
@@ -586,15 +650,25 @@ fn run_setup<const D: usize>(
                 }
                 timings.steps.push(timing(step, Some(report)));
                 write_frame(step, sim.state())?;
-                if args.checkpoint_every.is_some_and(|k| step % k == 0) {
+                let checkpoint = args.checkpoint_every.is_some_and(|k| step % k == 0);
+                let periodic_summary = step % SUMMARY_EVERY == 0 && step < steps;
+                if checkpoint || periodic_summary {
                     // Timings first: a resumed run reads those up to its checkpoint back.
                     write_timings(&args.out.join("timings.json"), &timings)?;
+                }
+                if periodic_summary {
+                    write_summary(&args.out.join("summary.json"), &summary)?;
+                }
+                if checkpoint {
                     Checkpoint::new(args, step, &sim, &summary.steps)?.write(&args.out)?;
                 }
                 progress.inc(1);
                 if args.stop_after == Some(step) {
                     progress.finish_and_clear();
                     return Err(CliError::Stopped(step));
+                }
+                if halt == Some(Halt::AfterFrame(step)) {
+                    Halt::AfterFrame(step).halt();
                 }
             }
             Err(e) => {
@@ -687,7 +761,43 @@ fn run_setup<const D: usize>(
     Ok(())
 }
 
-/// `hooke run` of a fluid scene: the spring integrators' options are refused.
+/// Warns on standard error, before a run of `steps` frames into `out` steps, when it is long
+/// ([`WARN_FRAMES`]) or its frames are estimated to be large ([`WARN_BYTES`]): `frame` is a frame
+/// file already written, whose size stands for every frame's.
+fn warn_of_large_output(steps: usize, frame: &Path, out: &Path) {
+    // Without the frame's size (an unreadable file), the frame count alone decides.
+    let frame_bytes = std::fs::metadata(frame).map_or(0, |m| m.len());
+    let total = frame_bytes.saturating_mul(steps as u64 + 1);
+    if steps > WARN_FRAMES || total > WARN_BYTES {
+        eprintln!(
+            "warning: {steps} frames of about {} each will write about {} to {}/frames, and \
+             summary.json (rewritten every {SUMMARY_EVERY} frames) grows to about {}",
+            human_bytes(frame_bytes),
+            human_bytes(total),
+            out.display(),
+            human_bytes(SUMMARY_RECORD_BYTES.saturating_mul(steps as u64 + 1)),
+        );
+    }
+}
+
+/// `bytes` with a decimal unit, to three significant digits: `512 B`, `1.23 MB`, `45.6 TB`.
+fn human_bytes(bytes: u64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 999.5 && unit + 1 < units.len() {
+        value /= 1000.0;
+        unit += 1;
+    }
+    let decimals = match value {
+        _ if unit == 0 => 0,
+        v if v < 9.995 => 2,
+        v if v < 99.95 => 1,
+        _ => 0,
+    };
+    format!("{value:.decimals$} {}", units[unit])
+}
+
 /// The value of an optional flag parsed as `T`, or a [`CliError::Argument`] naming the flag.
 fn parse_flag<T: FromStr>(value: &Option<String>, name: &'static str) -> Result<Option<T>, CliError>
 where
@@ -704,6 +814,7 @@ where
         .transpose()
 }
 
+/// `hooke run` of a fluid scene: the spring integrators' options are refused.
 fn run_fluid(args: &RunArgs) -> Result<(), CliError> {
     let not_for_fluid = [
         ("beta", args.beta.is_some()),
@@ -780,5 +891,22 @@ fn rate_record(rate: crate::sim::RateSource) -> output::RateRecord {
     output::RateRecord {
         rate: rate.rate(),
         source: source.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_counts_read_with_three_digits() {
+        assert_eq!(human_bytes(0), "0 B");
+        assert_eq!(human_bytes(999), "999 B");
+        assert_eq!(human_bytes(1_000), "1.00 kB");
+        assert_eq!(human_bytes(5_286), "5.29 kB");
+        assert_eq!(human_bytes(45_600_000), "45.6 MB");
+        assert_eq!(human_bytes(500_000_000_000), "500 GB");
+        assert_eq!(human_bytes(999_600_000), "1.00 GB");
+        assert_eq!(human_bytes(u64::MAX), "18.4 EB");
     }
 }

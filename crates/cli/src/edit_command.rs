@@ -86,6 +86,13 @@ pub fn run(args: &EditArgs) -> Result<(), EditError> {
     match (&args.replay, &args.frames) {
         (Some(script), Some(frames)) => replay(args, &mut editor, script, frames),
         _ => {
+            // What a killed session left beside the files this one writes.
+            for path in args.record.iter().chain([&args.save]) {
+                hooke_mesh::io::remove_temporaries_of(path).map_err(|e| EditorError::Write {
+                    path: path.clone(),
+                    reason: e.to_string(),
+                })?;
+            }
             let settings = hooke_editor::window::WindowSettings {
                 size: args.size,
                 save_path: args.save.clone(),

@@ -19,6 +19,7 @@ pub mod edit_command;
 mod mesh_command;
 pub mod output;
 mod sph;
+mod test_hook;
 
 pub use command::main;
 

@@ -3,7 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::mesh::io::{read_mesh, save_msh, save_tetgen, save_vtk, write_atomically, Frame, Mesh};
+use crate::mesh::io::{
+    read_mesh, remove_temporaries_of, save_msh, save_tetgen, save_vtk, write_atomically, Frame,
+    Mesh,
+};
 use crate::mesh::stuffing::{
     quality_report, tetrahedralize, tetrahedralize_graded, ClosedSurface, QualityReport,
     StuffingError, StuffingOptions,
@@ -92,6 +95,15 @@ pub(crate) fn run(args: &MeshArgs) -> Result<(), MeshCommandError> {
                 source,
             };
             let options = StuffingOptions::new(*spacing).map_err(surface_error)?;
+            // The temporary files a killed earlier write of these outputs left beside them.
+            let mut outputs = match out_kind.as_str() {
+                "node" => vec![out.with_extension("node"), out.with_extension("ele")],
+                _ => vec![out.clone()],
+            };
+            outputs.extend(json.iter().cloned());
+            for output in &outputs {
+                remove_temporaries_of(output)?;
+            }
             let mesh = match read_mesh(input)? {
                 Mesh::Surface(mesh) => mesh,
                 Mesh::Volume(_) => return Err(MeshCommandError::Input {
@@ -131,6 +143,9 @@ pub(crate) fn run(args: &MeshArgs) -> Result<(), MeshCommandError> {
             Ok(())
         }
         MeshCommand::Quality { mesh, json } => {
+            if let Some(path) = json {
+                remove_temporaries_of(path)?;
+            }
             let tets =
                 match read_mesh(mesh)? {
                     Mesh::Volume(tets) => tets,

@@ -53,26 +53,23 @@ pub use session::{FrameInput, Session, RECORD_EVERY_FRAMES};
 
 use std::path::Path;
 
-/// Write `bytes` to `path` through a temporary file in the same directory and a rename, so that
-/// the file is either the old one or complete.
+/// Write `bytes` to `path` atomically, through [`hooke_mesh::io::write_atomically`] (a temporary
+/// file of its own beside `path`, synced and renamed onto it, the directory synced): the file is
+/// either the old one or complete.
 ///
 /// # Errors
 /// [`EditorError::Write`] naming the file.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), EditorError> {
-    let write_error = |reason: String| EditorError::Write {
-        path: path.to_path_buf(),
-        reason,
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| write_error("not a file name".into()))?;
-    let mut temporary_name = std::ffi::OsString::from(".");
-    temporary_name.push(name);
-    temporary_name.push(".tmp");
-    let temporary = path.with_file_name(temporary_name);
-    std::fs::write(&temporary, bytes).map_err(|e| write_error(e.to_string()))?;
-    std::fs::rename(&temporary, path).map_err(|e| {
-        let _ = std::fs::remove_file(&temporary);
-        write_error(e.to_string())
+    use std::io::Write;
+    hooke_mesh::io::write_atomically(path, |out| out.write_all(bytes)).map_err(|e| {
+        let reason = match e {
+            // The path is named by the editor's error already.
+            hooke_mesh::MeshError::Io { source, .. } => source.to_string(),
+            e => e.to_string(),
+        };
+        EditorError::Write {
+            path: path.to_path_buf(),
+            reason,
+        }
     })
 }

@@ -1,6 +1,6 @@
 //! Prints a digest of the state after a few steps of small scenes for every method combination:
 //! a bit-for-bit comparison of two builds.
-use hooke_sph::{scenes, DensityMethod, Fluid, Integrator, KernelKind};
+use hooke_sph::{scenes, DensityMethod, Evaluated, Fluid, Integrator, KernelKind};
 
 fn digest(values: impl Iterator<Item = f64>) -> u64 {
     let mut h = 0xcbf29ce484222325u64;
@@ -9,6 +9,19 @@ fn digest(values: impl Iterator<Item = f64>) -> u64 {
         h = h.wrapping_mul(0x100000001b3);
     }
     h
+}
+
+/// The digest of every position, velocity, acceleration and density of `e`, then of `more`.
+fn motion_digest<const D: usize>(e: &Evaluated<D>, more: impl Iterator<Item = f64>) -> u64 {
+    digest(
+        e.positions()
+            .iter()
+            .chain(e.velocities())
+            .chain(e.accelerations())
+            .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
+            .chain(e.densities().iter().copied())
+            .chain(more),
+    )
 }
 
 fn main() {
@@ -46,14 +59,11 @@ fn main() {
                 fluid.step().unwrap();
             }
             let e = fluid.evaluated();
-            let d = digest(
-                e.positions()
+            let d = motion_digest(
+                &e,
+                e.pressures()
                     .iter()
-                    .chain(e.velocities())
-                    .chain(e.accelerations())
-                    .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
-                    .chain(e.densities().iter().copied())
-                    .chain(e.pressures().iter().copied())
+                    .copied()
                     .chain(std::iter::once(e.fluid().time())),
             );
             println!("2d {kernel:?} {integrator:?} {density:?} {d:016x}");
@@ -65,14 +75,7 @@ fn main() {
             fluid.step().unwrap();
         }
         let e = fluid.evaluated();
-        let d = digest(
-            e.positions()
-                .iter()
-                .chain(e.velocities())
-                .chain(e.accelerations())
-                .flat_map(|v| v.iter().copied().collect::<Vec<_>>())
-                .chain(e.densities().iter().copied()),
-        );
+        let d = motion_digest(&e, std::iter::empty());
         println!("3d {kernel:?} {} {d:016x}", fluid.fluid_count());
     }
 }

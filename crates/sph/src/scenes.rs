@@ -205,26 +205,6 @@ fn vector<const D: usize>(values: [f64; D]) -> SVector<f64, D> {
     SVector::from(values)
 }
 
-/// The step-cost benchmark's fluid (`hooke bench --sph`, `examples/step_cost`): the dam break's
-/// parameters on a 1 m square column of about `particles` fluid particles (Δx = 1/round(√particles),
-/// at least 2 across) in a 2 × 1.5 m tank walled at the sides and bottom, with [`WALL_LAYERS`] layers
-/// of boundary particles and the sound speed from the column's height.
-pub fn step_cost_column(particles: usize) -> ColumnInTank<2> {
-    let side = (particles as f64).sqrt().round().max(2.0);
-    ColumnInTank::<2> {
-        tank_min: SVector::zeros(),
-        tank_max: SVector::<f64, 2>::new(2.0, 1.5),
-        walls: [[true, true], [true, false]],
-        column_max: SVector::<f64, 2>::new(1.0, 1.0),
-        dx: 1.0 / side,
-        layers: WALL_LAYERS,
-        params: FluidParams {
-            sound_speed: 0.0,
-            ..FluidParams::default()
-        },
-    }
-}
-
 /// SCENES.md's dam break in 2D: a 1 m × 2 m column in the corner of a 4 m × 4 m tank with walls at
 /// x = 0, x = 4 and y = 0 (open top), ρ₀ = 1000, c₀ = 10·√(2gH), h = 1.3 Δx, α = 0.1, run to 1 s.
 /// SCENES.md's Δx is 0.02 m (5,000 fluid particles); 0.01 and 0.005 for convergence.

@@ -100,6 +100,10 @@ pub struct BenchArgs {
     /// scene whole as `hooke run` does and reports its wall time and particle-steps per second.
     #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"])]
     pub sph: Option<String>,
+    /// With --sph: number the column's fluid particles in a fixed random order, as a long run's
+    /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
+    #[arg(long, requires = "sph")]
+    pub sph_shuffle: bool,
     /// No progress lines on stderr.
     #[arg(long, short)]
     pub quiet: bool,
@@ -129,6 +133,17 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         // The command runs the fluid's benchmark itself, with its typed error; here it comes as text.
         return crate::sph::bench::run(&crate::sph::bench::SphBenchOptions::from_args(args))
             .map_err(|e| BenchError::Scene(e.to_string()));
+    }
+    // What a killed earlier run left of the files this one writes (the shared cache aside: another
+    // run may be writing there).
+    let outputs: Vec<&std::path::Path> = [&args.json, &args.csv, &args.plot]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    crate::output::remove_leftovers_of(&outputs).map_err(leftover_error)?;
+    if let Some(dir) = &args.frames {
+        crate::output::remove_leftovers(&[dir]).map_err(leftover_error)?;
     }
     let begin = Instant::now();
     let quiet = args.quiet;
@@ -307,6 +322,20 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         plot_pareto(path, &plotted, &problem.name)?;
     }
     Ok(())
+}
+
+/// A failure to remove a leftover temporary file, as the output error it is.
+fn leftover_error(e: crate::output::OutputError) -> BenchError {
+    match e {
+        crate::output::OutputError::Io { path, source } => BenchError::Output {
+            path,
+            reason: source.to_string(),
+        },
+        e => BenchError::Output {
+            path: PathBuf::new(),
+            reason: e.to_string(),
+        },
+    }
 }
 
 fn write_outputs(args: &BenchArgs, records: &[Record]) -> Result<(), BenchError> {

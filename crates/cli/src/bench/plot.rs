@@ -145,32 +145,24 @@ fn chart(
     Ok(())
 }
 
-/// Render with `draw` into a PNG at `path`, through a temporary file beside it.
+/// Render with `draw` into a PNG at `path`, atomically (see `crate::output::write_png`).
 fn write_png(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<(), String>,
 ) -> Result<(), BenchError> {
     crate::bench::output::create_parent(path)?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    // The `.png` suffix makes plotters choose the PNG encoder.
-    let tmp = tempfile::Builder::new()
-        .prefix(".bench-plot-")
-        .suffix(".png")
-        .tempfile_in(dir)
-        .map_err(|e| plot_error(path, e))?
-        .into_temp_path();
+    let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
     {
-        let area = BitMapBackend::new(&tmp, size).into_drawing_area();
+        let area = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
         area.fill(&WHITE).map_err(|e| plot_error(path, e))?;
         draw(&area).map_err(|e| plot_error(path, e))?;
         area.present().map_err(|e| plot_error(path, e))?;
     }
-    tmp.persist(path).map_err(|e| plot_error(path, e.error))?;
-    Ok(())
+    crate::output::write_png(path, &pixels, size.0, size.1).map_err(|e| match e {
+        crate::output::OutputError::Io { source, .. } => plot_error(path, source),
+        e => plot_error(path, e),
+    })
 }
 
 /// Error against wall time of the step on log axes, one line per solver through its settings in

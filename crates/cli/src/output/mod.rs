@@ -11,6 +11,8 @@ mod progress;
 mod summary;
 mod timings;
 
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 pub use preview::{render_preview, PreviewInput, PreviewObstacle, PreviewPositions};
@@ -68,6 +70,15 @@ impl OutputError {
         }
     }
 
+    /// The [`OutputError::Io`] of a file operation of the mesh crate about `path` (which reports
+    /// nothing but I/O errors, each naming its file).
+    fn from_mesh(path: &Path, e: crate::mesh::MeshError) -> Self {
+        match e {
+            crate::mesh::MeshError::Io { path, source } => OutputError::Io { path, source },
+            e => OutputError::io(path, std::io::Error::other(e.to_string())),
+        }
+    }
+
     /// An [`OutputError::Plot`] about `path`.
     fn plot(path: &Path, message: impl std::fmt::Display) -> Self {
         OutputError::Plot {
@@ -77,66 +88,155 @@ impl OutputError {
     }
 }
 
-/// Writes `value` to `path` as JSON (pretty-printed or compact), atomically: to a temporary file in
-/// `path`'s directory, flushed, synced and renamed onto `path`; on any error the temporary file is
-/// removed and `path` is left as it was.
+/// Writes `path` through `write`, atomically, by [`crate::mesh::io::write_atomically`] (the
+/// workspace's one implementation: a temporary file of this writer's own beside `path`, synced,
+/// renamed onto it, the directory synced); on any error the temporary file is removed and `path`
+/// is left as it was.
+pub(crate) fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
+) -> Result<(), OutputError> {
+    crate::mesh::io::write_atomically(path, write).map_err(|e| OutputError::from_mesh(path, e))
+}
+
+/// Removes the temporary files that [`write_atomically`] left in `dirs` when a process writing there
+/// was killed (see [`crate::mesh::io::remove_temporaries`]): a command calls it on the directories
+/// it owns when it starts, so that they then hold complete files only.
+pub(crate) fn remove_leftovers(dirs: &[&Path]) -> Result<(), OutputError> {
+    for dir in dirs {
+        crate::mesh::io::remove_temporaries(dir).map_err(|e| OutputError::from_mesh(dir, e))?;
+    }
+    Ok(())
+}
+
+/// Removes the temporary files that [`write_atomically`] left beside each of `paths` when a process
+/// writing it was killed (see [`crate::mesh::io::remove_temporaries_of`]): for a command that
+/// writes a few named files into directories it does not own, when it starts. A path whose
+/// directory does not exist has none.
+pub(crate) fn remove_leftovers_of(paths: &[&Path]) -> Result<(), OutputError> {
+    for path in paths {
+        crate::mesh::io::remove_temporaries_of(path)
+            .map_err(|e| OutputError::from_mesh(path, e))?;
+    }
+    Ok(())
+}
+
+/// Writes `value` to `path` as JSON (pretty-printed or compact) and a final newline, atomically
+/// (see [`write_atomically`]).
 pub(crate) fn write_json_atomically(
     path: &Path,
     value: &impl serde::Serialize,
     pretty: bool,
 ) -> Result<(), OutputError> {
-    use std::io::Write;
-    let tmp = temp_file_beside(path, ".hooke-", ".json.tmp")?;
-    {
-        let mut writer = std::io::BufWriter::new(tmp.as_file());
+    // serde_json's error is kept aside so that it is reported as JSON, not as I/O.
+    let mut json_error = None;
+    let written = write_atomically(path, |out| {
         let json = if pretty {
-            serde_json::to_writer_pretty(&mut writer, value)
+            serde_json::to_writer_pretty(&mut *out, value)
         } else {
-            serde_json::to_writer(&mut writer, value)
+            serde_json::to_writer(&mut *out, value)
         };
-        json.map_err(|source| OutputError::Json {
+        match json {
+            Ok(()) => out.write_all(b"\n"),
+            Err(e) if e.is_io() => Err(e.into()),
+            Err(e) => {
+                json_error = Some(e);
+                Err(std::io::Error::other("cannot serialise"))
+            }
+        }
+    });
+    match json_error {
+        Some(source) => Err(OutputError::Json {
             path: path.to_path_buf(),
             source,
-        })?;
-        writer
-            .write_all(b"\n")
-            .and_then(|()| writer.flush())
-            .map_err(|e| OutputError::io(path, e))?;
+        }),
+        None => written,
     }
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| OutputError::io(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| OutputError::io(path, e.error))?;
-    Ok(())
 }
 
-/// A new temporary file in `path`'s directory, named `{prefix}…{suffix}`, with the permissions an
-/// ordinary new file gets (0o666 less the umask on Unix, not tempfile's private 0o600), since it
-/// becomes `path` once complete.
-fn temp_file_beside(
+/// Writes `pixels` (RGB, 8 bits a channel, row-major, `width` × `height`) to `path` as a PNG,
+/// atomically (see [`write_atomically`]). The encoder and its settings are those plotters uses to
+/// save a bitmap, so the bytes are the same as its own file's.
+pub(crate) fn write_png(
     path: &Path,
-    prefix: &str,
-    suffix: &str,
-) -> Result<tempfile::NamedTempFile, OutputError> {
-    let dir = parent_dir(path);
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(prefix).suffix(suffix);
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+) -> Result<(), OutputError> {
+    use image::ImageEncoder;
+    let mut encoding_error = None;
+    let written = write_atomically(path, |out| {
+        image::codecs::png::PngEncoder::new(out)
+            .write_image(pixels, width, height, image::ColorType::Rgb8)
+            .map_err(|e| match e {
+                image::ImageError::IoError(e) => e,
+                e => {
+                    encoding_error = Some(e.to_string());
+                    std::io::Error::other("cannot encode")
+                }
+            })
+    });
+    match encoding_error {
+        Some(message) => Err(OutputError::plot(path, message)),
+        None => written,
     }
-    builder
-        .tempfile_in(dir)
-        .map_err(|e| OutputError::io(dir, e))
 }
 
-/// The directory a temporary file for `path` goes in: `path`'s parent, or the current directory
-/// when `path` is a bare file name.
-fn parent_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use plotters::prelude::*;
+
+    #[test]
+    fn png_bytes_are_those_plotters_saves() {
+        let dir = tempfile::tempdir().unwrap();
+        let (width, height) = (7u32, 5u32);
+        let pixels: Vec<u8> = (0..width * height * 3)
+            .map(|i| (i * 37 % 256) as u8)
+            .collect();
+        let ours = dir.path().join("ours.png");
+        write_png(&ours, &pixels, width, height).unwrap();
+        let theirs = dir.path().join("theirs.png");
+        {
+            let mut backend = BitMapBackend::new(&theirs, (width, height));
+            backend
+                .blit_bitmap((0, 0), (width, height), &pixels)
+                .unwrap();
+            backend.present().unwrap();
+        }
+        assert_eq!(
+            std::fs::read(&ours).unwrap(),
+            std::fs::read(&theirs).unwrap()
+        );
+    }
+
+    #[test]
+    fn a_value_json_cannot_hold_is_a_json_error_and_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("summary.json");
+        std::fs::write(&path, b"old").unwrap();
+        // JSON object keys must be strings.
+        let value = std::collections::BTreeMap::from([((1, 2), 3)]);
+        let e = write_json_atomically(&path, &value, true).unwrap_err();
+        assert!(matches!(e, OutputError::Json { .. }), "{e:?}");
+        assert!(e.to_string().contains("summary.json"), "{e}");
+        assert_eq!(std::fs::read(&path).unwrap(), b"old");
+        // No temporary file is left beside it.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn leftovers_of_a_directory_or_of_named_files_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for name in ["a.json", ".a.json.AbC123.tmp", ".b.png.XyZ789.tmp"] {
+            std::fs::write(d.join(name), b"x").unwrap();
+        }
+        let present = |name: &str| d.join(name).exists();
+        remove_leftovers_of(&[&d.join("a.json"), &d.join("missing/c.csv")]).unwrap();
+        assert!(!present(".a.json.AbC123.tmp"));
+        assert!(present(".b.png.XyZ789.tmp") && present("a.json"));
+        remove_leftovers(&[d]).unwrap();
+        assert!(!present(".b.png.XyZ789.tmp") && present("a.json"));
     }
 }

@@ -12,7 +12,6 @@
 //! DejaVu Sans font embedded in the program, so no system font is needed. Non-finite positions
 //! are skipped (with everything that touches them) and counted in the picture's caption.
 
-use std::fs::File;
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -21,7 +20,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::register_font;
 
-use super::{temp_file_beside, OutputError};
+use super::{write_png, OutputError};
 
 /// Default width of the preview, in pixels.
 pub const PREVIEW_WIDTH: u32 = 800;
@@ -189,26 +188,6 @@ pub fn render_preview_sized(
 fn font_ready() -> bool {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     *REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok())
-}
-
-/// Encodes `pixels` (RGB, row-major) as a PNG in a temporary file beside `path`, syncs it and
-/// renames it onto `path`.
-fn write_png(path: &Path, pixels: &[u8], width: u32, height: u32) -> Result<(), OutputError> {
-    // The `.png` suffix makes plotters choose the PNG encoder.
-    let tmp = temp_file_beside(path, ".preview-", ".png")?.into_temp_path();
-    {
-        let mut backend = BitMapBackend::new(&tmp, (width, height));
-        backend
-            .blit_bitmap((0, 0), (width, height), pixels)
-            .map_err(|e| OutputError::plot(path, e))?;
-        backend.present().map_err(|e| OutputError::plot(path, e))?;
-    }
-    File::open(&tmp)
-        .and_then(|f| f.sync_all())
-        .map_err(|e| OutputError::io(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| OutputError::io(path, e.error))?;
-    Ok(())
 }
 
 /// Draws the picture at `SS` times the size and averages it down to `width` × `height` RGB.

@@ -7,12 +7,12 @@
 //! `solver_residual` reads back as `None`, whatever it was).
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::BufReader;
 use std::path::Path;
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use super::{temp_file_beside, OutputError};
+use super::{write_json_atomically, OutputError};
 
 /// The whole run: its setup and one record per recorded step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -173,24 +173,7 @@ fn f64_or_nan<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Erro
 /// renamed onto `path`; on any error the temporary file is removed and `path` is left as it was.
 /// Non-finite numbers are written as `null` (see the [module documentation](self)).
 pub fn write_summary(path: &Path, summary: &RunSummary) -> Result<(), OutputError> {
-    let tmp = temp_file_beside(path, ".summary-", ".json.tmp")?;
-    {
-        let mut writer = BufWriter::new(tmp.as_file());
-        serde_json::to_writer_pretty(&mut writer, summary).map_err(|source| OutputError::Json {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        writer
-            .write_all(b"\n")
-            .and_then(|()| writer.flush())
-            .map_err(|e| OutputError::io(path, e))?;
-    }
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| OutputError::io(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| OutputError::io(path, e.error))?;
-    Ok(())
+    write_json_atomically(path, summary, true)
 }
 
 /// Reads a summary written by [`write_summary`]; `null` numbers read back as NaN.

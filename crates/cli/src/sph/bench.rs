@@ -1,6 +1,6 @@
 //! `hooke bench --sph COUNTS`: the cost of a 2D WCSPH step against particle count, split by phase.
 //!
-//! The set-up is hooke-sph's `examples/step_cost.rs`: for each count N, a square column of
+//! The set-up ([`step_cost_column`]): for each count N, a square column of
 //! about N particles (side 1 m, Δx = 1/round(√N)) in the corner of a 2 m × 1.5 m tank with open top
 //! and three layers of wall particles, SCENES.md's parameters otherwise (h = 1.3 Δx, c₀ = 10·√(2gH),
 //! α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up, then `--repeats`
@@ -16,8 +16,9 @@
 use std::path::Path;
 use std::time::Instant;
 
-use hooke_sph::scenes::step_cost_column;
-use hooke_sph::Fluid;
+use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
+use hooke_sph::{Fluid, FluidParams};
+use nalgebra::SVector;
 use plotters::coord::combinators::IntoLogRange;
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -193,13 +194,57 @@ enum JsonRecord {
     Scene(SphSceneRecord),
 }
 
+/// The step-cost benchmark's fluid: the dam break's
+/// parameters on a 1 m square column of about `particles` fluid particles (Δx = 1/round(√particles),
+/// at least 2 across) in a 2 × 1.5 m tank walled at the sides and bottom, with `WALL_LAYERS` layers
+/// of boundary particles and the sound speed from the column's height.
+fn step_cost_column(particles: usize) -> ColumnInTank<2> {
+    let side = (particles as f64).sqrt().round().max(2.0);
+    ColumnInTank::<2> {
+        tank_min: SVector::zeros(),
+        tank_max: SVector::<f64, 2>::new(2.0, 1.5),
+        walls: [[true, true], [true, false]],
+        column_max: SVector::<f64, 2>::new(1.0, 1.0),
+        dx: 1.0 / side,
+        layers: WALL_LAYERS,
+        params: FluidParams {
+            sound_speed: 0.0,
+            ..FluidParams::default()
+        },
+    }
+}
+
 /// Measures one count (see the [module](self)).
-pub(crate) fn measure(count: usize, steps: u32) -> Result<SphBenchRecord, SphCliError> {
+///
+/// With `shuffle`, the fluid particles are numbered in a fixed pseudo-random order (a Fisher-Yates
+/// shuffle driven by a fixed linear congruential generator: the same order every run), as a long
+/// run's mixing leaves them.
+pub(crate) fn measure(
+    count: usize,
+    steps: u32,
+    shuffle: bool,
+) -> Result<SphBenchRecord, SphCliError> {
     let spec = step_cost_column(count);
     let name = format!("bench N={count}");
     let fail = |what: &str, e| SphCliError::fluid(&name, what, e);
-    let mut fluid =
-        Fluid::new(spec.build().map_err(|e| fail("setup", e))?).map_err(|e| fail("setup", e))?;
+    let mut setup = spec.build().map_err(|e| fail("setup", e))?;
+    if shuffle {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        for i in (1..setup.fluid_positions.len()).rev() {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let j = ((state >> 33) % (i as u64 + 1)) as usize;
+            setup.fluid_positions.swap(i, j);
+            if !setup.fluid_velocities.is_empty() {
+                setup.fluid_velocities.swap(i, j);
+            }
+            if !setup.fluid_densities.is_empty() {
+                setup.fluid_densities.swap(i, j);
+            }
+        }
+    }
+    let mut fluid = Fluid::new(setup).map_err(|e| fail("setup", e))?;
     for _ in 0..2 {
         fluid.step().map_err(|e| fail("warm-up step", e))?;
     }
@@ -272,6 +317,8 @@ pub(crate) struct SphBenchOptions<'a> {
     pub plot: Option<&'a Path>,
     /// `--quiet`.
     pub quiet: bool,
+    /// `--sph-shuffle`: the fluid particles numbered in a random order (see [`measure`]).
+    pub shuffle: bool,
 }
 
 impl<'a> SphBenchOptions<'a> {
@@ -283,6 +330,7 @@ impl<'a> SphBenchOptions<'a> {
             json: args.json.as_deref(),
             plot: args.plot.as_deref(),
             quiet: args.quiet,
+            shuffle: args.sph_shuffle,
         }
     }
 }
@@ -290,6 +338,9 @@ impl<'a> SphBenchOptions<'a> {
 /// Runs `hooke bench --sph`: measures every count and scene, prints the tables, writes the files
 /// asked for (`--json`: one record per entry, in order; `--plot`: the counts).
 pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
+    // What a killed earlier run left of the files this one writes.
+    let outputs: Vec<&Path> = [options.json, options.plot].into_iter().flatten().collect();
+    crate::output::remove_leftovers_of(&outputs)?;
     let entries = parse_entries(options.counts)?;
     let steps = u32::try_from(options.steps)
         .ok()
@@ -307,7 +358,7 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
                 if !options.quiet {
                     eprintln!("[{at:7.1} s] sph N={count}: {steps} timed steps");
                 }
-                measured.push(JsonRecord::Count(measure(count, steps)?));
+                measured.push(JsonRecord::Count(measure(count, steps, options.shuffle)?));
             }
             Entry::Scene(name) => {
                 if !options.quiet {
@@ -333,7 +384,12 @@ pub(crate) fn run(options: &SphBenchOptions) -> Result<(), SphCliError> {
         .collect();
     if !records.is_empty() {
         println!(
-            "2D WCSPH step cost (column in a tank, the dam break's parameters (docs/sph.md)), {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            "2D WCSPH step cost (column in a tank, the dam break's parameters (docs/sph.md)){}, {} thread(s), {steps} timed step(s) after 2 warm-up steps; phases as the fluid times them",
+            if options.shuffle {
+                ", particles numbered at random"
+            } else {
+                ""
+            },
             rayon_threads()
         );
         print!("{}", format_table(&records));
@@ -379,16 +435,8 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> SphCliError {
 fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
     // Registers the embedded font (shared with the preview).
     let text = super::preview::font_ready();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".sph-bench-")
-        .suffix(".png")
-        .tempfile_in(dir)
-        .map_err(|e| SphCliError::io(dir, e))?
-        .into_temp_path();
+    const SIZE: (u32, u32) = (900, 600);
+    let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     type Column = fn(&SphBenchRecord) -> f64;
     let series: [(&str, Column, RGBColor); 5] = [
         ("step", |r| r.ms_per_step, RGBColor(30, 32, 36)),
@@ -418,8 +466,8 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
         let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
         lo..hi.max(lo * 10.0)
     };
-    let draw = || -> Result<(), String> {
-        let area = BitMapBackend::new(&tmp, (900, 600)).into_drawing_area();
+    let mut draw = || -> Result<(), String> {
+        let area = BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area();
         area.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut builder = ChartBuilder::on(&area);
         builder
@@ -484,9 +532,7 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
         area.present().map_err(|e| e.to_string())
     };
     draw().map_err(|e| plot_error(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| SphCliError::io(path, e.error))?;
-    Ok(())
+    Ok(crate::output::write_png(path, &pixels, SIZE.0, SIZE.1)?)
 }
 
 #[cfg(test)]
@@ -512,9 +558,15 @@ mod tests {
 
     #[test]
     fn a_small_count_measures() {
-        let r = measure(400, 1).unwrap();
+        let r = measure(400, 1, false).unwrap();
         assert_eq!(r.fluid_particles, 400);
         assert!(r.ms_per_step > 0.0 && r.particle_steps_per_s > 0.0);
+        let walls = r.boundary_particles;
         assert!(format_table(&[r]).lines().count() == 2);
+        // Shuffled: the same particles, measured alike.
+        let shuffled = measure(400, 1, true).unwrap();
+        assert_eq!(shuffled.fluid_particles, 400);
+        assert_eq!(shuffled.boundary_particles, walls);
+        assert!(shuffled.ms_per_step > 0.0);
     }
 }

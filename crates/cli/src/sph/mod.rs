@@ -113,14 +113,3 @@ impl SphCliError {
         }
     }
 }
-
-/// Writes `path` through `write`, atomically (a temporary file beside it, renamed when complete).
-pub(crate) fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), SphCliError> {
-    crate::mesh::io::write_atomically(path, write).map_err(|e| match e {
-        crate::mesh::MeshError::Io { path, source } => SphCliError::Io { path, source },
-        e => SphCliError::io(path, std::io::Error::other(e.to_string())),
-    })
-}

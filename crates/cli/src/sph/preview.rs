@@ -84,30 +84,7 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> SphCliError {
 pub(crate) fn render<const D: usize>(path: &Path, input: &Input<D>) -> Result<(), SphCliError> {
     let mut pixels = vec![0u8; (WIDTH * HEIGHT * 3) as usize];
     draw(&mut pixels, input).map_err(|e| plot_error(path, e))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    // The `.png` suffix makes plotters choose the PNG encoder.
-    let tmp = tempfile::Builder::new()
-        .prefix(".preview-")
-        .suffix(".png")
-        .tempfile_in(dir)
-        .map_err(|e| SphCliError::io(dir, e))?
-        .into_temp_path();
-    {
-        let mut backend = BitMapBackend::new(&tmp, (WIDTH, HEIGHT));
-        backend
-            .blit_bitmap((0, 0), (WIDTH, HEIGHT), &pixels)
-            .map_err(|e| plot_error(path, e))?;
-        backend.present().map_err(|e| plot_error(path, e))?;
-    }
-    std::fs::File::open(&tmp)
-        .and_then(|f| f.sync_all())
-        .map_err(|e| SphCliError::io(path, e))?;
-    tmp.persist(path)
-        .map_err(|e| SphCliError::io(path, e.error))?;
-    Ok(())
+    Ok(crate::output::write_png(path, &pixels, WIDTH, HEIGHT)?)
 }
 
 fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), String> {

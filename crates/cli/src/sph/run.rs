@@ -27,7 +27,7 @@ use vtkio::model::{
     VertexNumbers, Vtk,
 };
 
-use super::{file, preview, write_atomically, SphCliError};
+use super::{file, preview, SphCliError};
 use crate::output::progress_bar;
 
 /// A fluid scene in 2D or 3D.
@@ -282,6 +282,7 @@ fn run_scene<const D: usize>(
     let frames_dir = options.out.join("frames");
     std::fs::create_dir_all(&frames_dir).map_err(|e| SphCliError::io(&frames_dir, e))?;
     remove_stale_frames(&frames_dir)?;
+    crate::output::remove_leftovers(&[options.out, &frames_dir])?;
     write_particles(
         &options.out.join("walls.vtk"),
         fluid.boundary_positions(),
@@ -536,5 +537,7 @@ fn write_particles<const D: usize>(
     let mut text = String::new();
     vtk.write_legacy_ascii(&mut text)
         .map_err(|e| SphCliError::io(path, std::io::Error::other(format!("vtkio: {e}"))))?;
-    write_atomically(path, |out| out.write_all(text.as_bytes()))
+    Ok(crate::output::write_atomically(path, |out| {
+        out.write_all(text.as_bytes())
+    })?)
 }

@@ -41,7 +41,7 @@ mod tetgen;
 mod vtk;
 mod vtk_read;
 
-pub use atomic::write_atomically;
+pub use atomic::{is_temporary, remove_temporaries, remove_temporaries_of, write_atomically};
 pub use msh::{parse_msh, read_msh};
 pub use obj::{parse_obj, read_obj, write_obj};
 pub use stl::{parse_stl, read_stl};

@@ -102,6 +102,27 @@ fn data_lines(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
     })
 }
 
+/// The next data line of a file whose header declares `count` records of `what`, `k` read so far;
+/// a [`MeshError::Parse`] at `end_line` if the file ends first.
+fn next_record<'a>(
+    lines: &mut impl Iterator<Item = (usize, Vec<&'a str>)>,
+    path: &Path,
+    end_line: usize,
+    count: u64,
+    k: u64,
+    what: &str,
+) -> Result<(usize, Vec<&'a str>), MeshError> {
+    lines.next().ok_or_else(|| {
+        parse_error(
+            path,
+            Some(end_line),
+            format!(
+                "unexpected end of file: the header declares {count} {what}, found {k} (truncated?)"
+            ),
+        )
+    })
+}
+
 /// The header's `index`-th value, if present, as an integer; `default` if absent.
 fn header_value(
     tokens: &[&str],
@@ -162,15 +183,14 @@ fn parse_nodes(text: &str, path: &Path) -> Result<(Vec<Vec3>, u64), MeshError> {
     let mut base = 0;
     let mut last_line = line;
     for k in 0..count {
-        let Some((line, tokens)) = lines.next() else {
-            return Err(parse_error(
-                path,
-                Some(total_lines.max(last_line)),
-                format!(
-                    "unexpected end of file: the header declares {count} points, found {k} (truncated?)"
-                ),
-            ));
-        };
+        let (line, tokens) = next_record(
+            &mut lines,
+            path,
+            total_lines.max(last_line),
+            count,
+            k,
+            "points",
+        )?;
         last_line = line;
         let index: u64 = tokens[0].parse().map_err(|_| {
             parse_error(
@@ -261,15 +281,14 @@ fn parse_elements(text: &str, base: u64, path: &Path) -> Result<Vec<[u32; 4]>, M
     let mut tetrahedra = reserve(count);
     let mut last_line = line;
     for k in 0..count {
-        let Some((line, tokens)) = lines.next() else {
-            return Err(parse_error(
-                path,
-                Some(total_lines.max(last_line)),
-                format!(
-                    "unexpected end of file: the header declares {count} tetrahedra, found {k} (truncated?)"
-                ),
-            ));
-        };
+        let (line, tokens) = next_record(
+            &mut lines,
+            path,
+            total_lines.max(last_line),
+            count,
+            k,
+            "tetrahedra",
+        )?;
         last_line = line;
         // `corners` is 4 or 10, so this cannot truncate.
         let needed = 1 + corners as usize;
