@@ -170,7 +170,21 @@ fn errors_are_clear_and_not_panics() {
             stderr.contains(expected),
             "{args:?}: expected {expected:?} in {stderr}"
         );
+        // Each cause is printed once, not again as a "caused by" line of its own.
+        for line in stderr
+            .lines()
+            .filter_map(|l| l.strip_prefix("  caused by: "))
+        {
+            assert_eq!(stderr.matches(line).count(), 1, "{args:?}: {stderr}");
+        }
     }
+    let missing = hooke(&["run", "no/such/file.toml", "--out", out_dir, "--quiet"]);
+    let stderr = String::from_utf8_lossy(&missing.stderr);
+    assert_eq!(
+        stderr.matches("No such file").count(),
+        1,
+        "the cause is printed once: {stderr}"
+    );
 }
 
 #[test]

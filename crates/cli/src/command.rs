@@ -296,10 +296,16 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            let mut shown = e.to_string();
+            eprintln!("error: {shown}");
             let mut source = std::error::Error::source(&e);
             while let Some(s) = source {
-                eprintln!("  caused by: {s}");
+                // Most messages already end with their cause: print each cause once.
+                let cause = s.to_string();
+                if !shown.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    shown = cause;
+                }
                 source = s.source();
             }
             ExitCode::FAILURE
@@ -661,6 +667,8 @@ fn run_setup<const D: usize>(
                 }
                 if checkpoint {
                     Checkpoint::new(args, step, &sim, &summary.steps)?.write(&args.out)?;
+                    // A run resumed from here starts without the solver's history: so does this one.
+                    sim.forget_solver_history();
                 }
                 progress.inc(1);
                 if args.stop_after == Some(step) {

@@ -506,6 +506,15 @@ impl<const D: usize> BackwardEuler<D> {
         }
     }
 
+    /// Forget the solver's history between steps (Newton's held factor: see
+    /// [`hooke_solvers::Newton::forget_held_factor`]); the other solvers carry none that a
+    /// checkpoint does not hold.
+    pub(crate) fn forget_solver_history(&mut self) {
+        if let Solver::Newton { newton, .. } = &mut self.solver {
+            newton.forget_held_factor();
+        }
+    }
+
     /// Projective dynamics on Φ (the matrix is factored here, once). Pins by reduction only: see
     /// the module documentation.
     pub(crate) fn projective(

@@ -299,6 +299,17 @@ impl<const D: usize> Simulation<D> {
         self.implicit.as_ref().and_then(|i| i.factor_time())
     }
 
+    /// Forget what the solver carries from one step to the next beyond the state (Newton's factor
+    /// held for reuse, [`hooke_solvers::FactorReuse`]): the next step is solved as the first step
+    /// of a simulation built from this state would be. Call it where a checkpoint is written, so
+    /// that a run resumed from the checkpoint and the run that wrote it take the same steps, bit
+    /// for bit. Costs one factorisation more at the next step.
+    pub fn forget_solver_history(&mut self) {
+        if let Some(implicit) = &mut self.implicit {
+            implicit.forget_solver_history();
+        }
+    }
+
     /// Replace the positions (m) and velocities (m/s) of every vertex between two steps, keeping the
     /// scene, the time and every factorisation and workspace: an interactive editor moves a particle
     /// or gives the particles an impulse (seed 004's right-click pull) without rebuilding its

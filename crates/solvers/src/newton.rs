@@ -946,6 +946,9 @@ pub struct Newton {
     /// length of the last such pause (see [`FactorReuse`]).
     reuse_pause: u32,
     reuse_backoff: u32,
+    /// Whether the held factor may precondition a later system (see
+    /// [`Newton::forget_held_factor`]).
+    reusable: bool,
 }
 
 /// The longest pause, in chances passed over, after consecutive refused reuses.
@@ -1001,6 +1004,7 @@ impl Newton {
             cg_report: Report::start(MAX_RELAXATION_COUNT),
             reuse_pause: 0,
             reuse_backoff: 0,
+            reusable: false,
             params,
         })
     }
@@ -1055,7 +1059,19 @@ impl Newton {
         };
         report.factor_time += self.cholesky.factor_time();
         report.factorizations += 1;
+        self.reusable = factored.is_ok() && self.cholesky.has_llt_factor();
         factored
+    }
+
+    /// Forget what this solver carries from one solve to the next: the held factor is not reused
+    /// (the next iteration factors its matrix) and the pause after refused reuses ends. A solve
+    /// after this call takes the same steps as the first solve of a new [`Newton`]: a simulation
+    /// calls it where it writes a checkpoint, so that a run resumed from the checkpoint and the
+    /// run that wrote it compute the same bits.
+    pub fn forget_held_factor(&mut self) {
+        self.reusable = false;
+        self.reuse_pause = 0;
+        self.reuse_backoff = 0;
     }
 
     /// Solve the Newton system of the current shift (see [`Newton::regularize`]) into `step` by CG
@@ -1070,7 +1086,7 @@ impl Newton {
         report: &mut NewtonReport,
     ) -> bool {
         let reuse = self.params.factor_reuse;
-        if !self.cholesky.has_llt_factor() {
+        if !(self.reusable && self.cholesky.has_llt_factor()) {
             return false;
         }
         if self.reuse_pause > 0 {
