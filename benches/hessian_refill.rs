@@ -2,7 +2,7 @@
 //! 611,202 springs, pins 0 and 319) in its fixed pattern, against the memory limit: a plain streaming
 //! write of a value array of the same length, measured in the same run.
 //!
-//! Issue 3 asks for refill ≤ 2 × stream, single-threaded. Also measured: the 2-thread refill (rayon's
+//! The target is refill ≤ 2 × stream, single-threaded. Also measured: the 2-thread refill (rayon's
 //! global pool) and, reported apart, building the pattern and scatter map once.
 //!
 //! Run: `cargo bench --bench hessian_refill` (a benchmark of the root package). Divide a refill

@@ -154,7 +154,8 @@ fn norm(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// Φ, the force residual and the free vertices of cloth-10's step, written out from SPEC §2.4.
+/// Φ, the force residual and the free vertices of cloth-10's step, written out from
+/// docs/model.md §6.4.
 struct Step {
     masses: Vec<f64>,
     springs: Vec<(usize, usize, f64, f64)>,

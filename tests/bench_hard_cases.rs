@@ -4,10 +4,11 @@
 //! every implicit integrator and report their measures; what those measures are depends on how
 //! the integrators handle contact, so only their shape is checked here.
 //!
-//! Not asserted for PD: on cloth-8 (not SCENES.md's cloth-40) projective dynamics with its default
-//! 10 iterations fails `stiff h=1/5` in the first step: the truncated solve leaves most of the
-//! elastic energy that y puts into the springs at the pins (h² k / m ≈ 2.6e5 there), and the energy
-//! watchdog stops it. On cloth-40 it finishes, with +49 % of the energy scale (benches/README.md).
+//! Not asserted for PD: on cloth-8 (not the hard cases' cloth-40) projective dynamics with its
+//! default 10 iterations fails `stiff h=1/5` in the first step: the truncated solve leaves most of
+//! the elastic energy that y puts into the springs at the pins (h² k / m ≈ 2.6e5 there), and the
+//! energy watchdog stops it. On cloth-40 it finishes, with +49 % of the energy scale
+//! (benches/README.md).
 
 use hooke_cli::bench::{
     format_hard_cases, hard_cases, hard_scene, HardCaseOptions, HardOutcome, HardResult,

@@ -1,7 +1,7 @@
-//! The speed-vs-error state and its reference (SCENES.md, SPEC §8) through the library: the cache
-//! returns the state bit for bit and survives a corrupt file; the meter's measures are exact at
-//! their ends (y gives objective error and residual 1, x* gives 0); PD's error falls with its
-//! iterations.
+//! The speed-vs-error state and its reference (docs/scenes.md §8, docs/model.md §9) through the
+//! library: the cache returns the state bit for bit and survives a corrupt file; the meter's
+//! measures are exact at their ends (y gives objective error and residual 1, x* gives 0); PD's
+//! error falls with its iterations.
 
 use hooke_cli::bench::{
     load_setup, run_spec, BenchProblem, ErrorMeter, PrepareOptions, StartState, TimingOptions,

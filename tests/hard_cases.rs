@@ -1,4 +1,4 @@
-//! The hard cases of SCENES.md (numerical stability), every integrator on every case.
+//! The hard cases of docs/scenes.md §6 (numerical stability), every integrator on every case.
 //!
 //! Each run takes a few frames and must either finish with finite values and bounded energy, or
 //! stop with a clear typed error of a kind its method may give:
@@ -12,7 +12,7 @@
 //!   overshoots on stiff springs at large steps) or the divergence checks;
 //! - projective dynamics, Chebyshev PD and L-BFGS (which run to an iteration budget) must finish;
 //! - backward Euler by Newton (with and without the opt-in relaxation) and by Newton-CG must finish on
-//!   every case, every step converged (issue 5). On the crushed and stretched starts they do so by
+//!   every case, every step converged. On the crushed and stretched starts they do so by
 //!   halving the steps they cannot finish (the `implicit` module of hooke-sim); the matrix shows the
 //!   most pieces a frame took.
 //!
@@ -57,7 +57,7 @@ fn frames(integrator: &str) -> usize {
 const MAX_SUBSTEPS: usize = 1000;
 
 /// The hard case `name` on cloth-40, built by the library (`hooke_cli::bench::hard_case`, shared with
-/// `hooke bench --hard-cases`), with the two properties SCENES.md states checked here.
+/// `hooke bench --hard-cases`), with the two properties docs/scenes.md §6 states checked here.
 fn case(name: &str) -> (Scene<3>, State<3>) {
     let (scene, state) = hard_case(name, N).unwrap();
     match name {

@@ -36,7 +36,7 @@ fn backward_euler_dissipates_the_energy_of_a_free_stretched_cloth() {
             p.z * 1.3,
         );
     }
-    // Newton's adaptive shift is slow where the cloth buckles (issue 4's open robustness target):
+    // Newton's adaptive shift is slow where the cloth buckles (an open robustness target):
     // give it room, and report what it used.
     let mut s = settings(Integrator::Newton);
     s.newton.max_iterations = 1000;

@@ -1,4 +1,4 @@
-//! The integrators against each other (issue 5's consistency tests) and the linearised β family.
+//! The integrators against each other (consistency tests) and the linearised β family.
 
 use hooke::mesh::generators;
 use hooke::sim::{
@@ -297,10 +297,10 @@ fn run_for(integrator: &str, h: f64, duration: f64) -> State<3> {
         "newton" => Settings {
             integrator: Integrator::Newton,
             // A relative gradient of 1e-4 moves x by ~1e-4 of |x* − y| = O(h²), far below the O(h)
-            // differences measured here. Tighter tolerances meet issue 4: at h = 2e-3 Newton's line
-            // search fails at relative gradient ~1e-5 ("the line search failed at iteration 1
-            // (relative gradient 1.33e-5)"), the round-off floor of Φ, instead of stopping as
-            // Stagnated.
+            // differences measured here. Tighter tolerances meet a known limit: at h = 2e-3
+            // Newton's line search fails at relative gradient ~1e-5 ("the line search failed at
+            // iteration 1 (relative gradient 1.33e-5)"), the round-off floor of Φ, instead of
+            // stopping as Stagnated.
             newton: NewtonParams {
                 convergence: Convergence::RelativeGradient,
                 tolerance: 1e-4,
@@ -452,8 +452,8 @@ fn symplectic_euler_keeps_the_energy_of_an_undamped_free_cloth_bounded() {
 #[test]
 fn backward_euler_never_increases_the_energy_of_a_free_undamped_solid() {
     // beam-2 free-floating (no pins, no gravity), compressed by 20 % along x and spinning: backward
-    // Euler is dissipative (E(x⁺) + ½|v⁺|²_M ≤ E(x) + ½|v|²_M at the exact minimiser of Φ; see SPEC
-    // §2.4), so the total energy never rises beyond Newton's tolerance, and it falls.
+    // Euler is dissipative (E(x⁺) + ½|v⁺|²_M ≤ E(x) + ½|v|²_M at the exact minimiser of Φ; see
+    // docs/model.md §6.4), so the total energy never rises beyond Newton's tolerance, and it falls.
     let mesh = generators::beam(2).unwrap();
     let scene = Scene::new(mesh, 1.0 / 30.0).unwrap();
     let mut state = scene.initial_state();

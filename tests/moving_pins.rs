@@ -1,5 +1,5 @@
-//! Pinned vertices on a prescribed path (SPEC §3: the pinned positions change, the system matrix
-//! does not), through every integrator.
+//! Pinned vertices on a prescribed path (docs/model.md §5.4: the pinned positions change, the
+//! system matrix does not), through every integrator.
 
 use hooke::mesh::generators;
 use hooke::sim::{ExternalForce, Integrator, Keyframe, PinPath, Pins, Scene, Settings, Simulation};

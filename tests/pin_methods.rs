@@ -1,6 +1,7 @@
-//! Pinned vertices by reduction (the default) and by counter-forces (SPEC §3): the two methods solve
-//! the same system for the free vertices, so Newton and the linearised integrator must give the same
-//! trajectories with either, and hold every pinned vertex exactly where it is prescribed.
+//! Pinned vertices by reduction (the default) and by counter-forces (docs/model.md §5.2, §5.3): the
+//! two methods solve the same system for the free vertices, so Newton and the linearised integrator
+//! must give the same trajectories with either, and hold every pinned vertex exactly where it is
+//! prescribed.
 
 use hooke::mesh::generators;
 use hooke::sim::{

@@ -1,4 +1,4 @@
-//! The `hooke` command on the fluid (issue 17): `hooke run` of SCENES.md's fluid scenes and of a
+//! The `hooke` command on the fluid: `hooke run` of the fluid scenes (docs/scenes.md §7) and of a
 //! `[fluid]` scene file writes VTK frames with velocity, density and pressure, a summary with the
 //! documented keys and a preview; bad input is an error with a message, never a panic;
 //! `hooke bench --sph` prints a row and writes JSON. Coarse spacings and short runs keep each test

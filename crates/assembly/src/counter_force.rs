@@ -1,16 +1,16 @@
-//! Pinned vertices by counter-forces (SPEC §3, seed 003's first method): keep every DOF, and hold
-//! a pinned vertex in place by a force that cancels the force on it, with that force's derivative
-//! in the Jacobian. The alternative to the reduction of [`FreeDofs`] (seed 003's second method, the
+//! Pinned vertices by counter-forces (docs/model.md §5.3): keep every DOF, and hold a pinned vertex
+//! in place by a force that cancels the force on it, with that force's derivative in the Jacobian. The alternative to the reduction of [`FreeDofs`] (docs/model.md §5.2, the
 //! default), and tested to give the same steps.
 //!
 //! # The method
-//! Newton on g(x) = M (x − y) − h² f(x) (SPEC §2.4) with a counter-force f_c on every pinned vertex
-//! p equal to minus the force on it: g_p = M_p (x_p − y_p) − h² (f_p + f_c,p) = M_p (x_p − y_p),
-//! zero for a vertex held where it is (x_p = y_p: the counter-force also cancels gravity and the
-//! other external forces; a pin that moves is placed on its path before the step). The derivative
-//! of f_c,p is −∂f_p/∂x, so row p of ∇g is M_p in its diagonal block and zero elsewhere, and the
-//! Newton step keeps Δx_p = 0. Column p of the free rows, ∂g_f/∂x_p, then multiplies Δx_p = 0: it is
-//! zeroed too, which changes no step and keeps the matrix symmetric (for Cholesky and CG).
+//! Newton on g(x) = M (x − y) − h² f(x) (docs/model.md §6.4) with a counter-force f_c on every
+//! pinned vertex p equal to minus the force on it: g_p = M_p (x_p − y_p) − h² (f_p + f_c,p)
+//! = M_p (x_p − y_p), zero for a vertex held where it is (x_p = y_p: the counter-force also cancels
+//! gravity and the other external forces; a pin that moves is placed on its path before the step).
+//! The derivative of f_c,p is −∂f_p/∂x, so row p of ∇g is M_p in its diagonal block and zero
+//! elsewhere, and the Newton step keeps Δx_p = 0. Column p of the free rows, ∂g_f/∂x_p, then
+//! multiplies Δx_p = 0: it is zeroed too, which changes no step and keeps the matrix symmetric (for
+//! Cholesky and CG).
 //!
 //! # Relation to the reduction
 //! With K the identity with the pinned rows removed and P the identity with the free rows removed,

@@ -1,4 +1,4 @@
-//! Fixed-vertex reduction (SPEC §3, seed 003's second method): the map between the full vertex
+//! Fixed-vertex reduction (docs/model.md §5.2): the map between the full vertex
 //! numbering and the free vertices, x = Kᵀ x_f + b with K the identity with the pinned rows removed.
 //!
 //! Matrices over the free degrees of freedom are assembled directly on the free vertices (see

@@ -1,4 +1,5 @@
-//! The Hessian of the backward Euler objective Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) (SPEC §2.4),
+//! The Hessian of the backward Euler objective Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x)
+//! (docs/model.md §6.4),
 //! M + h² ∇²E, as a sparse symmetric matrix in faer's CSC format over the free degrees of freedom.
 //!
 //! [`HessianPattern`] is built once per topology (springs and pinned vertices): the symbolic CSC
@@ -9,15 +10,15 @@
 //! [`SparseColMatRef`] without copying, ready for `faer`'s sparse Cholesky (whose symbolic analysis
 //! can therefore be reused across refills).
 //!
-//! Damping (SPEC §4) adds to the same values: [`HessianPattern::add_dashpot_into`] the velocity
-//! Jacobian of the dashpot along the springs, scaled (h for backward Euler), and
+//! Damping (docs/model.md §4) adds to the same values: [`HessianPattern::add_dashpot_into`] the
+//! velocity Jacobian of the dashpot along the springs, scaled (h for backward Euler), and
 //! [`HessianPattern::add_vertex_diagonal`] a per-vertex multiple of the identity (viscous damping
 //! h·c, or masses).
 //!
-//! Pinned vertices (SPEC §3) are removed by assembling directly on the free vertices: their rows and
-//! columns never exist, a spring from a free vertex to a pinned one adds to the free vertex's
-//! diagonal block only. The result is K (M + h² ∇²E) Kᵀ, bit for bit equal to the full matrix with
-//! the pinned rows and columns deleted.
+//! Pinned vertices (docs/model.md §5.2) are removed by assembling directly on the free vertices:
+//! their rows and columns never exist, a spring from a free vertex to a pinned one adds to the free
+//! vertex's diagonal block only. The result is K (M + h² ∇²E) Kᵀ, bit for bit equal to the full
+//! matrix with the pinned rows and columns deleted.
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use hooke_mesh::Spring;
@@ -244,7 +245,7 @@ impl<const D: usize> HessianPattern<D> {
     /// Add the velocity Jacobian of the dashpot damping along every spring, scaled: for each spring
     /// s = (i, j) with B_s = `scale` · c · r̂r̂ᵀ (r = x_i − x_j at `positions`, m), add B_s to the
     /// diagonal blocks of i and j and −B_s to the blocks (i, j) and (j, i). This is
-    /// −`scale` · ∂f_dashpot/∂v with f_i = −c ((v_i − v_j)·r̂) r̂ (SPEC §4, see
+    /// −`scale` · ∂f_dashpot/∂v with f_i = −c ((v_i − v_j)·r̂) r̂ (docs/model.md §4, see
     /// [`dashpot_velocity_block`](crate::spring::dashpot_velocity_block)): positive semidefinite for
     /// `scale` · c ≥ 0. Backward Euler uses `scale` = h: in positions, g(x) = M (x − y) −
     /// h² f(x, (x − x_n)/h) has the Jacobian M − h² ∂f/∂x − h ∂f/∂v, and the velocity form

@@ -1,4 +1,5 @@
-//! Projective dynamics / fast mass-spring matrices (SPEC §2.5; Liu, Bargteil, O'Brien, Kavan 2013).
+//! Projective dynamics / fast mass-spring matrices (docs/model.md §6.8; Liu, Bargteil, O'Brien,
+//! Kavan 2013).
 //!
 //! Local step: d_s = l_s r̂_s for every spring ([`local_step`]). Global step:
 //! (M + h² L) x = h² J d + M y, with L = (Σ k_s A_s A_sᵀ) ⊗ I_D the stiffness-weighted graph Laplacian
@@ -8,7 +9,8 @@
 //! M + h² L (n_free × n_free with pinned vertices removed), to be factored once and applied to the D
 //! coordinate columns as D right-hand sides. J is never formed on the solver path: [`j_times`]
 //! computes (J d)_i = Σ_s k_s (A_s)_i d_s from the springs, and [`LaplacianPattern::rhs_into`] the
-//! reduced right-hand side K (h² J d + M y − (M + h² L) b) of SPEC §3 directly. [`j_matrix`] builds J
+//! reduced right-hand side K (h² J d + M y − (M + h² L) b) of docs/model.md §5.2
+//! directly. [`j_matrix`] builds J
 //! as a matrix for tests.
 
 use faer::sparse::{

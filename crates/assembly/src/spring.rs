@@ -1,7 +1,7 @@
 //! Per-spring kernels: energy, force, dashpot force, stretch. Generic over the dimension `D`.
 //!
-//! Conventions (SPEC §1): a spring (i, j) with stiffness k (N/m) and rest length l (m), r = x_i − x_j.
-//! Energy ½ k (|r| − l)²; force on i f_i = −k (|r| − l) r̂, and f_j = −f_i.
+//! Conventions (docs/model.md §2.2): a spring (i, j) with stiffness k (N/m) and rest length l (m),
+//! r = x_i − x_j. Energy ½ k (|r| − l)²; force on i f_i = −k (|r| − l) r̂, and f_j = −f_i.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -62,7 +62,7 @@ pub fn stretch<const D: usize>(rest_length: f64, r: &SVector<f64, D>) -> f64 {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Definiteness {
     /// The exact Hessian k[(1 − l/|r|)(I − r̂r̂ᵀ) + r̂r̂ᵀ]: indefinite when the spring is compressed
-    /// (|r| < l). Newton's default (quadratic convergence, SPEC §1).
+    /// (|r| < l). Newton's default (quadratic convergence, docs/model.md §2.4).
     #[default]
     Exact,
     /// The factor (1 − l/|r|) clamped at 0: k[max(0, 1 − l/|r|)(I − r̂r̂ᵀ) + r̂r̂ᵀ], positive
@@ -221,7 +221,7 @@ impl<const D: usize> HessianTerms<D> {
 /// semidefinite and exactly symmetric. Zero at zero length, consistent with [`dashpot_force`].
 ///
 /// The dependence of the dashpot force on positions (through r̂) is not included: implicit
-/// integrators that linearise damping in v only (SPEC §4) do not use it.
+/// integrators that linearise damping in v only (docs/model.md §6.3) do not use it.
 #[inline]
 pub fn dashpot_velocity_block<const D: usize>(
     coefficient: f64,

@@ -125,7 +125,7 @@ pub(crate) struct RunArgs {
     /// breaks, 40 to 2 s for hydrostatic-2d).
     #[arg(long)]
     steps: Option<usize>,
-    /// Fluid scenes only: the lattice spacing Δx in metres (default: SCENES.md's, 0.02 in 2D and
+    /// Fluid scenes only: the lattice spacing Δx in metres (default: the scene's, 0.02 in 2D and
     /// 0.04 in 3D, or the scene file's dx).
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -1,10 +1,10 @@
 //! # hooke-cli
 //!
 //! The `hooke` command-line program as a library: the command itself ([`main`]), the speed-against-error
-//! benchmark behind `hooke bench` ([`bench`](mod@bench), SPEC §8), and what a run writes to disk
-//! ([`output`]: frames, `summary.json`, `preview.png`, the progress bar). `hooke run` of a fluid
-//! scene (`dam-break-2d`, `hydrostatic-2d`, `dam-break-3d`, or a scene file with a `[fluid]` table)
-//! and `hooke bench --sph` run hooke-sph's weakly compressible SPH.
+//! benchmark behind `hooke bench` ([`bench`](mod@bench), docs/model.md §9), and what a run writes
+//! to disk ([`output`]: frames, `summary.json`, `preview.png`, the progress bar). `hooke run` of a
+//! fluid scene (`dam-break-2d`, `hydrostatic-2d`, `dam-break-3d`, or a scene file with a `[fluid]`
+//! table) and `hooke bench --sph` run hooke-sph's weakly compressible SPH.
 //!
 //! It is the only crate of the workspace that depends on clap, indicatif, plotters and serde_json. A
 //! program that embeds the simulation library depends on `hooke` with `default-features = false` and

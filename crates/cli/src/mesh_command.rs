@@ -191,7 +191,7 @@ fn print_report(report: &QualityReport) {
     }
 }
 
-/// The JSON report: the keys the issue names, `null` where a value does not apply.
+/// The JSON report (docs/formats.md §8): `null` where a value does not apply.
 fn report_json(report: &QualityReport) -> serde_json::Value {
     serde_json::json!({
         "tets": report.tets,

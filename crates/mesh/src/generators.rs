@@ -1,5 +1,6 @@
-//! Generators for the canonical scenes of `SCENES.md`, built exactly as written there: vertex order,
-//! spring order and counts are part of the contract, because benchmarks compare against them.
+//! Generators for the canonical scenes of docs/scenes.md, built exactly as written there: vertex
+//! order, spring order and counts are part of the contract, because benchmarks compare against
+//! them.
 
 use std::collections::HashMap;
 
@@ -17,7 +18,7 @@ pub fn cloth_spring_count(n: usize) -> usize {
 /// cloth-N: an N×N grid on the unit square in the x–z plane (y = 0), vertex (i, j) at
 /// (i/(N−1), 0, j/(N−1)) with index i·N + j; total mass 1 kg spread evenly; structural, shear and
 /// two-ring bending springs with one stiffness `stiffness` (N/m) and rest length = initial distance,
-/// in the order of `SCENES.md`; the two triangles of each cell kept for output.
+/// in the order of docs/scenes.md §1; the two triangles of each cell kept for output.
 ///
 /// The pins (vertices 0 and N−1), gravity and time step of the scene are set by the simulation crate.
 ///
@@ -210,15 +211,16 @@ pub fn beam(r: usize) -> Result<SpringMesh<3>, MeshError> {
 /// How the radius graph sets the rest length of a new spring.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RestLength {
-    /// Every spring gets this rest length (m), as seed 004 does (0.1).
+    /// Every spring gets this rest length (m), as the 2D sketch scene does (0.1).
     Fixed(f64),
     /// Each spring's rest length is the distance at which it was created.
     Measured,
 }
 
-/// The particle graph of seed 004, built one particle at a time: each new particle is joined by a
-/// spring to every existing particle closer than `radius`. Neighbours are found on a uniform grid of
-/// cell size `radius`, so adding a particle costs O(neighbours), not O(particles).
+/// The particle graph of the 2D sketch (seed-2d, the editor), built one particle at a time: each
+/// new particle is joined by a spring to every existing particle closer than `radius`. Neighbours
+/// are found on a uniform grid of cell size `radius`, so adding a particle costs O(neighbours), not
+/// O(particles).
 #[derive(Clone, Debug)]
 pub struct RadiusGraph<const D: usize> {
     radius: f64,
@@ -335,9 +337,10 @@ impl<const D: usize> RadiusGraph<D> {
     }
 }
 
-/// seed-2d: seed 004's starting scene. Particles at (0.3, 0.3), (0.3, 0.4), (0.4, 0.4), mass 1 kg,
-/// joined within radius 0.15 m with rest length 0.1 m. The seed's force −Y(|r|/l − 1) r̂ with Young's
-/// modulus Y = 1000 N is a spring of stiffness k = Y/l = 1e4 N/m. Springs: (0,1), (0,2), (1,2).
+/// seed-2d: the 2D sketch's starting scene (docs/scenes.md §5). Particles at (0.3, 0.3),
+/// (0.3, 0.4), (0.4, 0.4), mass 1 kg, joined within radius 0.15 m with rest length 0.1 m. The
+/// sketch's force −Y(|r|/l − 1) r̂ with Young's modulus Y = 1000 N is a spring of stiffness
+/// k = Y/l = 1e4 N/m. Springs: (0,1), (0,2), (1,2).
 pub fn seed_2d() -> Result<SpringMesh<2>, MeshError> {
     let mut graph = RadiusGraph::new(
         0.15,
@@ -350,9 +353,9 @@ pub fn seed_2d() -> Result<SpringMesh<2>, MeshError> {
     graph.build(1.0)
 }
 
-/// Seed 004's spring Young's modulus Y (N): its force is −Y(|r|/l − 1) r̂.
+/// The 2D sketch's spring Young's modulus Y (N): its force is −Y(|r|/l − 1) r̂.
 pub const SEED_2D_YOUNG: f64 = 1000.0;
-/// Seed 004's rest length (m).
+/// The 2D sketch's rest length (m).
 pub const SEED_2D_REST_LENGTH: f64 = 0.1;
 
 /// Positions of a spring mesh as measured distances, for tests: rest lengths equal distances.

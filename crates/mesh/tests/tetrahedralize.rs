@@ -166,7 +166,7 @@ fn diagonal(surface: &ClosedSurface) -> f64 {
 // ---------------------------------------------------------------------------------------------
 // The properties every output must have.
 
-/// Checks everything the issue promises of a stuffed mesh, with messages that say what failed.
+/// Checks everything the mesher promises of a stuffed mesh, with messages that say what failed.
 /// `volume_tolerance` is the allowed relative volume error, or `None` where the spacing is too coarse
 /// for the 2 % promise.
 fn assert_valid(
@@ -178,7 +178,7 @@ fn assert_valid(
     assert_valid_with(surface, stuffed, spacing, volume_tolerance, true);
 }
 
-/// As [`assert_valid`]; `smooth` asks for the issue's two-sided Hausdorff bound (half a spacing),
+/// As [`assert_valid`]; `smooth` asks for the two-sided Hausdorff bound (half a spacing),
 /// which sharp edges and corners (that the mesh bevels) and gaps narrower than the spacing (that it
 /// bridges) do not meet: for them the one-sided bound (boundary to surface) is asserted.
 fn assert_valid_with(
@@ -258,7 +258,7 @@ fn assert_valid_with(
             "boundary point {p:?} is {distance} from the surface (bound {bound}, spacing {spacing})"
         );
     }
-    // The issue's two-sided bound, surface to boundary as well, for smooth surfaces resolved by the
+    // The two-sided bound, surface to boundary as well, for smooth surfaces resolved by the
     // lattice: creases and corners are bevelled and gaps narrower than a spacing bridged, so there
     // the surface lies farther from the boundary.
     if smooth {

@@ -1,5 +1,6 @@
-//! Contact (SPEC §4) as a projection after each step: positions are moved back onto the allowed
-//! side and the velocity component into the obstacle is removed. Pinned vertices are never touched.
+//! Contact (docs/model.md §7) as a projection after each step: positions are moved back onto the
+//! allowed side and the velocity component into the obstacle is removed. Pinned vertices are never
+//! touched.
 //!
 //! The explicit integrators project each vertex on its own ([`Contact::project`]) after every
 //! substep, whose penetrations are tiny. (Newton, Newton-CG, L-BFGS and projective dynamics handle
@@ -17,17 +18,17 @@
 //! that ended inside an obstacle (the active set) gets the normal displacement that puts it on the
 //! surface, at the point [`Contact::project`] would give, and may still move in that point's
 //! tangent plane; every free vertex then moves by the displacement Δ of least increase of the
-//! step's objective Φ (SPEC §2.4) to second order, ½ Δᵀ (M + h² ∇²E) Δ, under those constraints:
-//! one Newton step of the contact-constrained backward Euler problem from the unconstrained
-//! solution x⁺ (the clamped spring Hessian at x⁺, so the system is positive definite; solved by CG
-//! with Baraff and Witkin's per-vertex filter I − n nᵀ). A vertex that Δ leaves inside an obstacle
-//! joins the active set and Δ is solved again (at most [`MAX_PROJECTION_ROUNDS`] rounds); a last
-//! per-vertex pass puts anything still inside on the surface, so no vertex ends inside (a vertex in
-//! contact with a sphere ends on its tangent plane, just outside it). Each vertex's velocity becomes
-//! that of its projected position, v⁺ + Δ/h (times the drag factor where the integrator applies
-//! drag to (x⁺ − x_n)/h), and at the active vertices the inward normal component is removed and
-//! friction applied, as [`Contact::project`] does. Pinned vertices are not unknowns, so nothing
-//! moves them.
+//! step's objective Φ (docs/model.md §6.4) to second order, ½ Δᵀ (M + h² ∇²E) Δ, under those
+//! constraints: one Newton step of the contact-constrained backward Euler problem from the
+//! unconstrained solution x⁺ (the clamped spring Hessian at x⁺, so the system is positive definite;
+//! solved by CG with Baraff and Witkin's per-vertex filter I − n nᵀ). A vertex that Δ leaves inside
+//! an obstacle joins the active set and Δ is solved again (at most [`MAX_PROJECTION_ROUNDS`]
+//! rounds); a last per-vertex pass puts anything still inside on the surface, so no vertex ends
+//! inside (a vertex in contact with a sphere ends on its tangent plane, just outside it). Each
+//! vertex's velocity becomes that of its projected position, v⁺ + Δ/h (times the drag factor where
+//! the integrator applies drag to (x⁺ − x_n)/h), and at the active vertices the inward normal
+//! component is removed and friction applied, as [`Contact::project`] does. Pinned vertices are not
+//! unknowns, so nothing moves them.
 //!
 //! Measured on the same scene (`cargo run -p hooke-sim --example contact_probe -- newton`): the
 //! energy now rises at most 1.57 J above E₀ (frame 8; spring energy 2.9 J), the cloth drapes over
@@ -50,7 +51,8 @@ use crate::Scene;
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum Shape<const D: usize> {
-    /// Axis-aligned box walls that keep vertices inside [min, max] (m), seed 004's unit box.
+    /// Axis-aligned box walls that keep vertices inside [min, max] (m), as seed-2d's unit box
+    /// (docs/scenes.md §5).
     Box {
         /// Lower corner, m.
         min: SVector<f64, D>,

@@ -1,4 +1,4 @@
-//! Damping (SPEC §4): drag, viscous and dashpot.
+//! Damping (docs/model.md §4): drag, viscous and dashpot.
 
 use crate::error::{non_negative, SimError};
 
@@ -6,13 +6,13 @@ use crate::error::{non_negative, SimError};
 /// declares.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Damping {
-    /// Drag rate c_drag (1/s): after each velocity update v ← v e^(−h c_drag) (seed 004 uses 1).
+    /// Drag rate c_drag (1/s): after each velocity update v ← v e^(−h c_drag) (seed-2d uses 1).
     /// Applied exactly, so it never limits the time step.
     pub drag: f64,
-    /// Viscous coefficient c (N·s/m): f_i = −c v_i on every vertex (seed 000).
+    /// Viscous coefficient c (N·s/m): f_i = −c v_i on every vertex.
     pub viscous: f64,
     /// Dashpot coefficient c_d (N·s/m): f_i = −c_d ((v_i − v_j)·d) d along each spring, d its
-    /// direction (seed 004 uses 100).
+    /// direction (seed-2d uses 100).
     pub dashpot: f64,
 }
 

@@ -504,7 +504,7 @@ impl Context<'_> {
                 if m.bending.is_some() || m.mass.is_some() || m.fill.is_some() {
                     return Err(self.invalid(
                         "mesh",
-                        "`bending`, `mass` and `fill` apply to mesh files; generators build the scene as SCENES.md defines it",
+                        "`bending`, `mass` and `fill` apply to mesh files; generators build the scene as docs/scenes.md defines it",
                     ));
                 }
                 let graph_keys = m.positions.is_some()

@@ -1,4 +1,5 @@
-//! External forces (SPEC §3): gravity, wind, buoyancy and a point attractor, with their potentials.
+//! External forces (docs/model.md §3): gravity, wind, buoyancy and a point attractor, with their
+//! potentials.
 
 use nalgebra::SVector;
 
@@ -8,8 +9,8 @@ use crate::error::{finite_vector, non_negative, positive, SimError};
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum ExternalForce<const D: usize> {
-    /// Uniform gravity: f_i = m_i g, with `acceleration` g in m/s² (SCENES.md uses (0, −9.81, 0)).
-    /// Potential −Σ m_i g·x_i.
+    /// Uniform gravity: f_i = m_i g, with `acceleration` g in m/s² (the 3D scenes of docs/scenes.md
+    /// use (0, −9.81, 0)). Potential −Σ m_i g·x_i.
     Gravity {
         /// g, m/s².
         acceleration: SVector<f64, D>,
@@ -34,8 +35,9 @@ pub enum ExternalForce<const D: usize> {
         /// Height of the fluid surface along "up", m.
         surface: f64,
     },
-    /// Seed 004's right-click pull, as a zero-length spring to a point per unit mass:
-    /// f_i = −s m_i (x_i − p), with `strength` s in 1/s² (the seed uses 100). Potential ½ s m_i |x_i − p|².
+    /// The 2D editor's right-button pull (docs/editor.md), as a zero-length spring to a point per
+    /// unit mass: f_i = −s m_i (x_i − p), with `strength` s in 1/s² (the editor uses 100).
+    /// Potential ½ s m_i |x_i − p|².
     Attractor {
         /// p, m.
         point: SVector<f64, D>,

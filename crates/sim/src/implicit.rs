@@ -1,6 +1,6 @@
-//! Backward Euler (SPEC §2.4–2.5): x⁺ minimises Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) over the free
-//! vertices, with y = x_n + h v_n + h² M⁻¹ f_ext, then v⁺ = (x⁺ − x_n)/h. Solved by Newton (seed 003)
-//! or by projective dynamics (Liu et al. 2013), both from x⁰ = y.
+//! Backward Euler (docs/model.md §6.4–§6.9): x⁺ minimises Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x)
+//! over the free vertices, with y = x_n + h v_n + h² M⁻¹ f_ext, then v⁺ = (x⁺ − x_n)/h. Solved by
+//! Newton (docs/model.md §6.5) or by projective dynamics (Liu et al. 2013), both from x⁰ = y.
 //!
 //! Terms of a scene and how they enter. Every force that is linear in x or in v = (x − x_n)/h adds
 //! a quadratic ½ a_v |x_v − c_v|² per vertex to Φ, which folds exactly into the inertia term: M and y
@@ -23,7 +23,7 @@
 //!   iterations ([`hooke_solvers::ProjectiveDynamics::set_contact`], every iterate kept outside
 //!   the obstacles); only the linearised integrator projects the whole mesh after its step (the
 //!   `contact` module);
-//! - pins: removed from the unknowns (SPEC §3 reduction, [`PinMethod::Reduction`]), held at their
+//! - pins: removed from the unknowns (docs/model.md §5.2, [`PinMethod::Reduction`]), held at their
 //!   positions, or at the end of the step moved to where their prescribed path is at t + h (the
 //!   right-hand side changes, the matrices do not: PD's factorisation and Newton's symbolic
 //!   analysis are kept). With [`PinMethod::CounterForce`] Newton keeps every vertex an unknown
@@ -36,9 +36,9 @@
 //!   positions at a higher cost).
 //!
 //! A Newton (or Newton-CG) step that does not converge is redone as smaller steps (adaptive
-//! halving, see `MAX_HALVINGS`): backward Euler by Newton finishes even from SCENES.md's crushed
-//! and stretched starts, at the price of more steps, which the step's summary reports. L-BFGS, like
-//! projective dynamics, runs to its iteration budget and keeps the last iterate.
+//! halving, see `MAX_HALVINGS`): backward Euler by Newton finishes even from the hard cases'
+//! crushed and stretched starts, at the price of more steps, which the step's summary reports.
+//! L-BFGS, like projective dynamics, runs to its iteration budget and keeps the last iterate.
 
 use hooke_assembly::FreeDofs;
 use hooke_solvers::{
@@ -257,12 +257,12 @@ struct Half<const D: usize> {
 /// Euler, on a finer grid of steps; `SolveSummary::substeps` counts the pieces and `iterations`
 /// includes the given-up attempts.
 ///
-/// Cost control, measured on SCENES.md's crushed-to-1 % start of cloth-40 (Newton limit 200,
-/// release build): a failed whole step jumps straight to the depth where h is 2^CONVEXITY_SLACK
-/// times the convexity bound at x_n instead of failing once per level (2 frames: 36 s against 76 s;
-/// slack 0, 4 and 6 cost more iterations than 2), and a step size that failed is not tried again
-/// for the next 1, 2, 4, … 16 calls at that size (frames 1–4: 1212, 776, 496 and 283 iterations in
-/// 19, 12, 7 and 3 pieces, against 1382, 1017, 735 and 418 without).
+/// Cost control, measured on the crushed-to-1 % hard case of cloth-40 (docs/scenes.md §6; Newton
+/// limit 200, release build): a failed whole step jumps straight to the depth where h is
+/// 2^CONVEXITY_SLACK times the convexity bound at x_n instead of failing once per level (2 frames:
+/// 36 s against 76 s; slack 0, 4 and 6 cost more iterations than 2), and a step size that failed is
+/// not tried again for the next 1, 2, 4, … 16 calls at that size (frames 1–4: 1212, 776, 496 and
+/// 283 iterations in 19, 12, 7 and 3 pieces, against 1382, 1017, 735 and 418 without).
 const MAX_HALVINGS: u32 = 12;
 
 /// Refuse scene terms the solver does not model (see the module documentation).

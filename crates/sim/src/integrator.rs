@@ -12,24 +12,25 @@ use hooke_assembly::Definiteness;
 
 use crate::SimError;
 
-/// A time integration method (SPEC §2).
+/// A time integration method (docs/model.md §6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Integrator {
     /// Forward Euler: v⁺ = v + h M⁻¹ f(x, v), x⁺ = x + h v. Unstable for undamped springs at any
     /// step (its amplification factor exceeds 1): it gains energy, slowly at small steps.
     ExplicitEuler,
-    /// Symplectic (semi-implicit) Euler, seed 004's order: v⁺ = v + h M⁻¹ f(x, v), drag,
-    /// x⁺ = x + h v⁺, contact. Stable below the step bound; energy oscillates but does not drift.
+    /// Symplectic (semi-implicit) Euler, in the 2D sketch's order (docs/model.md §6.2):
+    /// v⁺ = v + h M⁻¹ f(x, v), drag, x⁺ = x + h v⁺, contact. Stable below the step bound; energy oscillates
+    /// but does not drift.
     SymplecticEuler,
-    /// Linearised implicit Euler of the β family (seeds 000 and 004):
+    /// Linearised implicit Euler of the β family (docs/model.md §6.3):
     /// [M − β h² ∂f/∂x(x)] v⁺ = M v + h f(x), x⁺ = x + h v⁺, one sparse linear solve per step by
     /// Jacobi or conjugate gradient, with [`Settings::linearized`]'s parameters. β = 1 is one Newton
     /// step of backward Euler from x_n. See the `linearized` module docs for how each scene term
     /// enters.
     Linearized,
-    /// Backward Euler solved by Newton's method (seed 003) to [`Settings::newton`]'s tolerance.
-    /// Unconditionally stable; dissipates energy.
+    /// Backward Euler solved by Newton's method (docs/model.md §6.5) to [`Settings::newton`]'s
+    /// tolerance. Unconditionally stable; dissipates energy.
     Newton,
     /// Backward Euler solved approximately by projective dynamics (Liu et al. 2013) with
     /// [`Settings::pd`]'s iteration budget; converges to the Newton solution as iterations grow.
@@ -175,8 +176,8 @@ impl FromStr for Integrator {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum LinearSolver {
-    /// Block Jacobi (3×3 blocks in 3D, seed 000): cheap iterations, but converges only when the
-    /// system is block diagonally dominant enough (small β h² k / m); otherwise it reports
+    /// Block Jacobi (3×3 blocks in 3D, docs/solvers.md §2.2): cheap iterations, but converges only
+    /// when the system is block diagonally dominant enough (small β h² k / m); otherwise it reports
     /// divergence.
     Jacobi,
     /// Conjugate gradient with the block-Jacobi preconditioner (the default): converges for every
@@ -297,7 +298,7 @@ impl FromStr for LinearSolver {
     }
 }
 
-/// How the implicit integrators hold pinned vertices (SPEC §3).
+/// How the implicit integrators hold pinned vertices (docs/model.md §5).
 ///
 /// Both methods solve the same system for the free vertices and give the same steps up to
 /// round-off (see [`hooke_assembly::CounterForce`]); a pinned vertex is at its prescribed position
@@ -306,12 +307,12 @@ impl FromStr for LinearSolver {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum PinMethod {
-    /// Remove the pinned DOFs from the unknowns (seed 003's second method, the default): the
+    /// Remove the pinned DOFs from the unknowns (docs/model.md §5.2, the default): the
     /// smallest system.
     #[default]
     Reduction,
     /// Keep every DOF an unknown and cancel the force on each pinned vertex by a counter-force,
-    /// with its derivative in the Jacobian (seed 003's first method): the pinned rows and columns
+    /// with its derivative in the Jacobian (docs/model.md §5.3): the pinned rows and columns
     /// of the system become m_p I. Supported by `newton` and `linearized`; `pd` refuses it with
     /// [`SimError::Unsupported`] (its one constant matrix would only gain decoupled rows: the
     /// counter-force has no Jacobian to enter a matrix that never holds the force's).

@@ -4,7 +4,8 @@
 //!
 //! A [`Scene`] holds a validated mesh with its pins, external forces, damping, contact and time
 //! step; a [`Simulation`] steps it from a [`State`] with an [`Integrator`]. The canonical scenes of
-//! `SCENES.md` are built by [`scenes::builtin`], and scene files are read by [`file::load_scene`].
+//! docs/scenes.md are built by [`scenes::builtin`], and scene files are read by
+//! [`file::load_scene`].
 //!
 //! Units: metres, kilograms, seconds (N, N/m, N·s/m, J).
 //!

@@ -1,13 +1,12 @@
-//! Linearised implicit Euler of the β family (SPEC §2.3; seed 000, seed 004):
+//! Linearised implicit Euler of the β family (docs/model.md §6.3):
 //!
 //! [M − β h² ∂f/∂x(x) − h ∂f/∂v] v⁺ = M v + h f(x, v) − h (∂f/∂v) v,   x⁺ = x + h v⁺,
 //!
-//! over the free vertices (pins by reduction, SPEC §3), solved by block Jacobi or by conjugate
-//! gradient with the block-Jacobi preconditioner. Without velocity-dependent forces this is the
-//! seed's [M − β h² ∂f/∂x] v⁺ = M v + h f(x) (seed 004 prints b = v Δt M⁻¹ f; b = v + Δt M⁻¹ f is
-//! meant). β = 0 is symplectic Euler, ½ the midpoint-like rule, 1 linearised backward Euler: one
-//! Newton step of backward Euler started from x⁰ = x_n (not from y, where [`crate::Integrator::Newton`]
-//! starts).
+//! over the free vertices (pins by reduction, docs/model.md §5.2), solved by block Jacobi or by
+//! conjugate gradient with the block-Jacobi preconditioner. Without velocity-dependent forces this
+//! is [M − β h² ∂f/∂x] v⁺ = M v + h f(x). β = 0 is symplectic Euler, ½ the midpoint-like rule, 1
+//! linearised backward Euler: one Newton step of backward Euler started from x⁰ = x_n (not from y,
+//! where [`crate::Integrator::Newton`] starts).
 //!
 //! The matrix is assembled by [`HessianPattern::assemble_into`], which fills D + h'² ∇²E for a
 //! per-vertex diagonal D (the masses, plus the attractor below); with h' = h√β and ∇²E = −∂f/∂x

@@ -24,10 +24,10 @@ pub enum Pins<const D: usize> {
     },
 }
 
-/// A prescribed path for pinned vertices (SPEC §3: the pinned positions b change, the system
-/// matrix does not): the displacement d(t) (m) at simulated time t (s). A vertex on a path is at
-/// x(t) = x(t₀) + d(t) − d(t₀), t₀ the time of the state the simulation starts from; its velocity
-/// over a step is the path's mean velocity over that step.
+/// A prescribed path for pinned vertices (docs/model.md §5.4: the pinned positions b change, the
+/// system matrix does not): the displacement d(t) (m) at simulated time t (s). A vertex on a path
+/// is at x(t) = x(t₀) + d(t) − d(t₀), t₀ the time of the state the simulation starts from; its
+/// velocity over a step is the path's mean velocity over that step.
 #[derive(Clone, Debug, PartialEq)]
 pub enum PinPath<const D: usize> {
     /// d(t) = velocity · t, velocity in m/s.
@@ -196,8 +196,8 @@ impl<const D: usize> Scene<D> {
     }
 
     /// Pin the vertices of `pins` (in addition to those pinned already) and move them along
-    /// `path`. The system matrices of the implicit integrators do not change (SPEC §3): only the
-    /// pinned positions do, and factorisations are kept.
+    /// `path`. The system matrices of the implicit integrators do not change (docs/model.md §5.4):
+    /// only the pinned positions do, and factorisations are kept.
     ///
     /// # Errors
     /// As [`Scene::with_pins`]; [`SimError::InvalidParameter`] for an invalid path or a vertex that

@@ -1,4 +1,4 @@
-//! The canonical scenes of `SCENES.md`, built exactly as written there, by name.
+//! The canonical scenes of docs/scenes.md, built exactly as written there, by name.
 
 use hooke_mesh::generators::{self, SEED_2D_REST_LENGTH};
 use nalgebra::{SVector, Vector2, Vector3};
@@ -10,9 +10,9 @@ use crate::integrator::{Integrator, Settings};
 use crate::scene::{Pins, Scene, State};
 use crate::SimError;
 
-/// Gravity of the 3D scenes, m/s² (SCENES.md).
+/// Gravity of the 3D scenes, m/s² (docs/scenes.md).
 pub const GRAVITY: f64 = 9.81;
-/// Gravity of seed 004's 2D scene, m/s² (the seed uses 9.8).
+/// Gravity of the 2D sketch scene seed-2d, m/s² (the sketch's 9.8, docs/scenes.md §5).
 pub const SEED_2D_GRAVITY: f64 = 9.8;
 /// cloth-N soft stiffness, N/m.
 pub const CLOTH_SOFT_STIFFNESS: f64 = 1e3;
@@ -106,7 +106,7 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
     ));
     list.push((
         "seed-2d".into(),
-        "seed 004's 2D particles in a unit box: three particles fall, springs hold, walls stop them".into(),
+        "the 2D sketch's particles in a unit box: three particles fall, springs hold, walls stop them".into(),
     ));
     list
 }
@@ -156,8 +156,8 @@ fn gravity_3d() -> ExternalForce<3> {
     }
 }
 
-/// cloth-N (SCENES.md): soft (k = 1e3 N/m) or stiff (k = 1e5 N/m); vertices 0 and N−1 pinned;
-/// gravity; h = 1/30 s; 30 frames; symplectic Euler with automatic substeps.
+/// cloth-N (docs/scenes.md §1): soft (k = 1e3 N/m) or stiff (k = 1e5 N/m); vertices 0 and N−1
+/// pinned; gravity; h = 1/30 s; 30 frames; symplectic Euler with automatic substeps.
 ///
 /// # Errors
 /// [`SimError::Mesh`] if `n < 2`.
@@ -176,7 +176,7 @@ pub fn cloth(n: usize, stiff: bool) -> Result<Setup<3>, SimError> {
     } else {
         format!("cloth-{n}")
     };
-    // Backward Euler by Newton at the frame step: unconditionally stable, no substeps (issue 5's
+    // Backward Euler by Newton at the frame step: unconditionally stable, no substeps (the
     // default; the explicit integrators need ~100 substeps a frame here).
     let settings = Settings {
         integrator: Integrator::Newton,
@@ -273,7 +273,7 @@ pub fn cloth_fall(n: usize) -> Result<Setup<3>, SimError> {
     Ok(setup)
 }
 
-/// beam-R (SCENES.md): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
+/// beam-R (docs/scenes.md §3): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
 ///
 /// # Errors
 /// [`SimError::Mesh`] if `r == 0`.
@@ -297,8 +297,9 @@ pub fn beam(r: usize) -> Result<Setup<3>, SimError> {
     ))
 }
 
-/// seed-2d (SCENES.md, seed 004): unit box walls, particle mass 1 kg, frames of 10 substeps of
-/// 1e-3 s, spring k = Y/l = 1e4 N/m, drag 1/s, dashpot 100 N·s/m, gravity 9.8 m/s²; 300 frames (3 s).
+/// seed-2d (docs/scenes.md §5, the 2D sketch scene): unit box walls, particle mass 1 kg, frames of
+/// 10 substeps of 1e-3 s, spring k = Y/l = 1e4 N/m, drag 1/s, dashpot 100 N·s/m, gravity 9.8 m/s²;
+/// 300 frames (3 s).
 ///
 /// # Errors
 /// Never for the fixed parameters; the `Result` is for uniformity.
@@ -326,7 +327,7 @@ pub fn seed_2d() -> Result<Setup<2>, SimError> {
     Ok(Setup::new("seed-2d".into(), scene, 300, settings))
 }
 
-/// Bounding-box diagonal of the solids from surfaces (SCENES.md "Solids from surfaces"), m.
+/// Bounding-box diagonal of the solids from surfaces (docs/scenes.md §4), m.
 pub const SOLID_DIAGONAL: f64 = 0.3;
 /// Lattice spacing of the solids from surfaces, as a fraction of their diagonal.
 pub const SOLID_SPACING_FRACTION: f64 = 1.0 / 30.0;
@@ -380,7 +381,7 @@ fn solid_from_surface(
     )?)
 }
 
-/// bunny-drop (SCENES.md "Solids from surfaces"): `data/meshes/bunny.obj` (z up in the file, turned
+/// bunny-drop (docs/scenes.md §4): `data/meshes/bunny.obj` (z up in the file, turned
 /// y up) scaled to a diagonal of 0.3 m, filled at a spacing of 0.01 m, k = 1e4 N/m, 1000 kg/m³
 /// lumped, its lowest point 0.2 m above the frictionless ground plane y = 0; gravity; 60 frames of 1/60 s, by
 /// backward Euler (Newton), the ground a barrier inside Newton's objective (docs/contact.md).
@@ -407,8 +408,8 @@ pub fn bunny_drop() -> Result<Setup<3>, SimError> {
     Ok(Setup::new("bunny-drop".into(), scene, 60, settings))
 }
 
-/// torus-hang (SCENES.md): `data/meshes/torus.obj` (axis y in the file, turned to z so that the
-/// ring stands upright) filled as bunny-drop, the vertices within 2 % of the height of the top
+/// torus-hang (docs/scenes.md §4): `data/meshes/torus.obj` (axis y in the file, turned to z so that
+/// the ring stands upright) filled as bunny-drop, the vertices within 2 % of the height of the top
 /// pinned; gravity; 60 frames of 1/60 s by backward Euler (Newton).
 ///
 /// # Errors

@@ -312,7 +312,7 @@ impl<const D: usize> Simulation<D> {
 
     /// Replace the positions (m) and velocities (m/s) of every vertex between two steps, keeping the
     /// scene, the time and every factorisation and workspace: an interactive editor moves a particle
-    /// or gives the particles an impulse (seed 004's right-click pull) without rebuilding its
+    /// or gives the particles an impulse (the 2D editor's right-button pull) without rebuilding its
     /// integrator. Static pinned vertices are held where `positions` puts them from then on;
     /// vertices on a pin path keep following their path. Copies; allocates nothing.
     ///

@@ -1,4 +1,4 @@
-//! The explicit stability bound h ≤ c √(m/k) (SPEC §2), made precise for a whole mesh.
+//! The explicit stability bound h ≤ c √(m/k) (docs/model.md §6.2), made precise for a whole mesh.
 //!
 //! For symplectic Euler on a linear damped oscillator ẍ = −ω² x − γ ẋ the step is stable when
 //! ω² h² + 2 γ h ≤ 4, i.e. h ≤ 4 / (γ + √(γ² + 4 ω²)) (= 2/ω undamped, the c = 2 of a single mass

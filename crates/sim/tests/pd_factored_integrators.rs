@@ -1,7 +1,7 @@
-//! Issue 15: L-BFGS, Newton-CG and Chebyshev PD as integrators. The first two minimise the same
-//! backward Euler objective Φ as Newton, so with every force, damping and pin method they must land
-//! where Newton lands; Chebyshev PD must get closer to backward Euler than plain PD with the same
-//! budget, report its ρ, and refuse what PD refuses.
+//! L-BFGS, Newton-CG and Chebyshev PD as integrators (docs/model.md §6.6–§6.9). The first two
+//! minimise the same backward Euler objective Φ as Newton, so with every force, damping and pin
+//! method they must land where Newton lands; Chebyshev PD must get closer to backward Euler than
+//! plain PD with the same budget, report its ρ, and refuse what PD refuses.
 
 use hooke_sim::{
     scenes, Damping, Integrator, PinMethod, PinPath, Pins, RateSource, Settings, SimError,

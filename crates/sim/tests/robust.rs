@@ -1,4 +1,4 @@
-//! Issue 19: settings validated where they enter, the state after a failed step, typed solver
+//! Robustness: settings validated where they enter, the state after a failed step, typed solver
 //! errors, `Settings::parallel` honoured bit for bit, and a per-frame converged flag.
 
 use hooke_sim::{scenes, Integrator, SimError, Simulation, SolverFailure, State};

@@ -1,4 +1,5 @@
-//! The built-in solids from surfaces (SCENES.md) and the scene-file key `fill = { spacing = … }`.
+//! The built-in solids from surfaces (docs/scenes.md §4) and the scene-file key
+//! `fill = { spacing = … }`.
 
 use hooke_sim::file::parse_scene;
 use hooke_sim::scenes::{builtin, AnySetup, SOLID_DIAGONAL};

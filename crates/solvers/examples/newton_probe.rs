@@ -1,7 +1,7 @@
-//! Newton on the backward Euler steps of cloth-N (SCENES.md: k = 1e3 N/m, pins 0 and N−1, gravity,
-//! h = 1/30 s, from rest), each step solved to a relative gradient of 1e-10 from x⁰ = y, printing
-//! the iterations, shifts and indefinite steps of every step and the full history of the last one.
-//! The 11th step (index 10) starts from SCENES.md's speed-vs-error state.
+//! Newton on the backward Euler steps of cloth-N (docs/scenes.md §1: k = 1e3 N/m, pins 0 and N−1,
+//! gravity, h = 1/30 s, from rest), each step solved to a relative gradient of 1e-10 from x⁰ = y,
+//! printing the iterations, shifts and indefinite steps of every step and the full history of the
+//! last one. The 11th step (index 10) starts from the speed-vs-error state (docs/scenes.md §8).
 //!
 //! `cargo run --release -p hooke-solvers --example newton_probe -- [N=40] [steps=11] [policy]`
 //! (`policy`: `shift` or `descent` for `IndefinitePolicy::Shift` or `NewtonIfDescent` instead of
@@ -9,12 +9,14 @@
 //! `HOOKE_FOCUS_RINGS`, `HOOKE_FOCUS_SWEEPS`, `HOOKE_TRUSTED_MODEL`, `HOOKE_SHIFT_FACTOR`,
 //! `HOOKE_BLEND_FACTOR`, `HOOKE_INITIAL_SHIFT` and `HOOKE_REGION_*`, `HOOKE_PATCH_SHARE` override those settings). With `HOOKE_STATE=file` the
 //! state after 10 steps is saved to `file`, or loaded from it if it exists (cloth-160 takes minutes
-//! to get there). `HOOKE_START=stretch3` or `crush` starts from SCENES.md's hard-case states (×3 in x
-//! and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k) (`HOOKE_DT`: another h than 1/30 s before the division; `HOOKE_STIFFNESS`: another k than 1e3 N/m); `HOOKE_DEFINITENESS=clamped`
-//! factors the clamped Hessian in every iteration. `HOOKE_EIG=1` prints the inertia of the Hessian
-//! at the last step's solution and its smallest generalised eigenvalues λ (H v = λ M v, in units of
-//! the masses), by inverse iteration. `HOOKE_SPRINGS=1` prints the distribution of |r|/l over
-//! the springs at the last step's solution (how compressed the most compressed springs are).
+//! to get there). `HOOKE_START=stretch3` or `crush` starts from the hard-case states
+//! (docs/scenes.md §6: ×3 in x and z; crushed to 1 %). `HOOKE_SUBSTEPS=k` uses h = 1/(30 k)
+//! (`HOOKE_DT`: another h than 1/30 s before the division; `HOOKE_STIFFNESS`: another k than
+//! 1e3 N/m); `HOOKE_DEFINITENESS=clamped` factors the clamped Hessian in every iteration.
+//! `HOOKE_EIG=1` prints the inertia of the Hessian at the last step's solution and its smallest
+//! generalised eigenvalues λ (H v = λ M v, in units of the masses), by inverse iteration.
+//! `HOOKE_SPRINGS=1` prints the distribution of |r|/l over the springs at the last step's solution
+//! (how compressed the most compressed springs are).
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -64,7 +66,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let shift_factor = setting("HOOKE_SHIFT_FACTOR", defaults.shift_factor)?;
     let blend_factor = setting("HOOKE_BLEND_FACTOR", defaults.blend_factor)?;
     let initial_shift = setting("HOOKE_INITIAL_SHIFT", defaults.initial_shift)?;
-    // HOOKE_STIFFNESS=k (N/m) and HOOKE_DT=h (s): SCENES.md's stiff variant (1e5) or its h = 1/5.
+    // HOOKE_STIFFNESS=k (N/m) and HOOKE_DT=h (s): the stiff variant (1e5) or its hard case's
+    // h = 1/5.
     let mesh = generators::cloth(n, setting("HOOKE_STIFFNESS", 1e3)?)?;
     let pinned = [0u32, n as u32 - 1];
     // HOOKE_SUBSTEPS=k: h = 1/(30 k) instead of 1/30.
@@ -90,7 +93,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut newton = Newton::new(step.pattern(), params)?;
     let mut x = mesh.positions().to_vec();
-    // HOOKE_START=stretch3 | crush: SCENES.md's hard-case starts (×3 in x and z; to 1 %).
+    // HOOKE_START=stretch3 | crush: the hard-case starts (docs/scenes.md §6: ×3 in x and z;
+    // to 1 %).
     match std::env::var("HOOKE_START").as_deref() {
         Ok("stretch3") => x.iter_mut().for_each(|p| {
             p.x *= 3.0;

@@ -1,7 +1,7 @@
 //! The floor of projective dynamics' iteration is its three-column solve with the prefactored
 //! K(M + h²L)Kᵀ, which streams the factor from memory once per column block. This times the ways
-//! of making that stream cheaper (issue 15, part 5) on cloth-N's matrix, each on the same
-//! simplicial factor order (faer's AMD):
+//! of making that stream cheaper (benches/results/issue15-pd-speed.md) on cloth-N's matrix, each on
+//! the same simplicial factor order (faer's AMD):
 //! - `f64/usize`: the storage PD uses (the baseline);
 //! - `f64/u32`: 32-bit row indices (12 bytes per stored entry instead of 16);
 //! - `f32/u32`, `f32/usize`: single-precision values as well (8 or 12 bytes), whose solve would

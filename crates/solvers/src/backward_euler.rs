@@ -61,7 +61,7 @@ fn spring_energy_change_from<const D: usize>(
 /// Ψ(x) = (h c / 2) Σ_s ((Δx_i − Δx_j)·d_s)², Δx = x − x_n, which
 /// [`BackwardEulerStep::set_dashpot`] adds to Φ (value, gradient and Hessian h c d dᵀ blocks).
 ///
-/// # Pins: reduction or counter-forces (SPEC §3)
+/// # Pins: reduction or counter-forces (docs/model.md §5)
 /// [`BackwardEulerStep::new`] removes the pinned vertices from the unknowns (the reduction, the
 /// default). [`BackwardEulerStep::with_counter_forces`] keeps every vertex an unknown (D per vertex,
 /// DOF D·v + a component a of vertex v) and applies [`CounterForce`] to the full-DOF Hessian and

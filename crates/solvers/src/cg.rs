@@ -1,4 +1,5 @@
-//! Preconditioned conjugate gradient (seed 000) for symmetric positive definite systems.
+//! Preconditioned conjugate gradient (docs/solvers.md §2.1) for symmetric positive definite
+//! systems.
 
 use std::time::Instant;
 

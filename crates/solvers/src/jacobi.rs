@@ -1,4 +1,5 @@
-//! Block Jacobi iteration (seed 000, seed 004): x ← x + ω D⁻¹ (b − A x), D the B × B diagonal blocks.
+//! Block Jacobi iteration (docs/solvers.md §2.2): x ← x + ω D⁻¹ (b − A x), D the B × B diagonal
+//! blocks.
 //!
 //! It converges when the spectral radius of I − ω D⁻¹ A is below 1 (e.g. for block diagonally dominant
 //! systems); otherwise the residual grows, and the solver reports [`SolveError::Diverged`] instead of

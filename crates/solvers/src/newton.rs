@@ -1,5 +1,5 @@
 //! Newton's method for minimising a smooth objective Φ whose Hessian has a fixed sparsity pattern
-//! (backward Euler: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x), seed 003).
+//! (backward Euler: Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x), docs/model.md §6.4-§6.5).
 //!
 //! Each iteration factors the Newton matrix (faer, symbolic analysis done once in
 //! [`Newton::new`]) and takes a backtracking (Armijo) line search along −H⁻¹∇Φ: as LLᵀ, which says
@@ -70,8 +70,9 @@
 //! [`NewtonError::InvalidParameter`]. The report's history grows as iterations go (it reserves a
 //! fixed number of records, not the iteration limit).
 //!
-//! SCENES.md's crushed-to-1 % start stays hard for every policy (every local model is valid in a
-//! tiny region); the simulation halves such steps (`hooke-sim`'s backward Euler).
+//! The crushed-to-1 % start of the hard cases (docs/scenes.md §6) stays hard for every policy
+//! (every local model is valid in a tiny region); the simulation halves such steps (`hooke-sim`'s
+//! backward Euler).
 
 use std::time::{Duration, Instant};
 
@@ -264,7 +265,7 @@ impl Default for Relaxation {
 impl Relaxation {
     /// The relaxation stack tuned for buckling cloth (every field's documentation gives its value
     /// here): sweeps, focused sweeps and the nonlinear elimination over patches. Opt-in: it pays
-    /// where a step's error sits in a fold of a crushed or buckling sheet (SCENES.md's crushed
+    /// where a step's error sits in a fold of a crushed or buckling sheet (the hard cases' crushed
     /// cloth-40 at 3 frames: 5.4 s against 24.7 s for plain Newton, release build; a cloth-160 run
     /// of 11 frames: 168 s against 337 s), and costs more than it saves elsewhere (cloth-80's
     /// speed-vs-error step 1.30 s against 0.77 s, a cloth-20 run 1.6× and a cloth-80 run 1.1×

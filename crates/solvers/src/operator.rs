@@ -143,7 +143,7 @@ impl Preconditioner for Identity {
     }
 }
 
-/// The inverted B × B diagonal blocks of a matrix (B = 3 for 3D vertices, as in seed 000):
+/// The inverted B × B diagonal blocks of a matrix (B = 3 for 3D vertices; docs/solvers.md §2.2):
 /// z_i = A_ii⁻¹ r_i per block.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockJacobi<const B: usize> {

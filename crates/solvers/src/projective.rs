@@ -1,5 +1,5 @@
-//! Projective dynamics / fast mass-spring (Liu, Bargteil, O'Brien, Kavan 2013; seed 003) for one
-//! backward Euler step: minimise Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) by alternating
+//! Projective dynamics / fast mass-spring (Liu, Bargteil, O'Brien, Kavan 2013; docs/model.md §6.8)
+//! for one backward Euler step: minimise Φ(x) = ½ (x − y)ᵀ M (x − y) + h² E(x) by alternating
 //! - the local step d_s = l_s r̂_s (parallel over springs), and
 //! - the global step K (M + h² L) Kᵀ x_f = K (h² J d + M y − (M + h² L) b),
 //!

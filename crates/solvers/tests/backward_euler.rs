@@ -135,10 +135,11 @@ fn projective_dynamics_and_newton_reach_the_same_beam_step() {
     assert_same("beam-1", &pd, &newton, motion);
 }
 
-/// Issue 4's requirement on cloth-40: ten steps of exact backward Euler (relative gradient 1e-10)
-/// from rest reach SCENES.md's speed-vs-error state; from there, Newton must reach 1e-8 in at most
-/// 25 iterations. The cloth buckles on the way (compressed springs: an indefinite exact Hessian), so
-/// this also checks that every step of the run converges, with its indefinite steps counted.
+/// Newton's robustness requirement on cloth-40: ten steps of exact backward Euler (relative
+/// gradient 1e-10) from rest reach the speed-vs-error state (docs/scenes.md §8); from there, Newton
+/// must reach 1e-8 in at most 25 iterations. The cloth buckles on the way (compressed springs: an
+/// indefinite exact Hessian), so this also checks that every step of the run converges, with its
+/// indefinite steps counted.
 #[test]
 fn newton_converges_fast_through_the_buckling_cloth_40_run() {
     let n = 40;

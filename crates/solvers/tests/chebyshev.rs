@@ -114,7 +114,7 @@ fn reaches_newton(mesh: SpringMesh<3>, pinned: &[u32]) {
         "{:?}",
         report.stop
     );
-    // SPEC §8's objective error; the bound.
+    // docs/model.md §9.2's objective error; the bound these tests hold solvers to.
     assert!(error.abs() <= 1e-10, "objective error {error:e}");
 }
 

@@ -37,8 +37,8 @@ fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32], amplitude: f64) {
         report.stop,
         report.iterations
     );
-    // SPEC §8's objective error; both solvers stop near round-off, so 1e-10 (the bound) has
-    // orders of magnitude of margin over the 1e-11 gradient.
+    // docs/model.md §9.2's objective error; both solvers stop near round-off, so 1e-10 (the bound
+    // these tests hold solvers to) has orders of magnitude of margin over the 1e-11 gradient.
     assert!(
         error.abs() <= 1e-10,
         "objective error {error:e} against Newton's x*"

@@ -43,7 +43,8 @@ fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32]) {
         "{:?}",
         report.stop
     );
-    // SPEC §8's objective error; the bound, far above the 1e-11 gradient's.
+    // docs/model.md §9.2's objective error; the bound these tests hold solvers to, far above the
+    // 1e-11 gradient's.
     assert!(error.abs() <= 1e-10, "objective error {error:e}");
 }
 

@@ -1,7 +1,8 @@
 //! The dam-break front against time at one spacing, as CSV on stdout: `t,T,Z,steps,max_density_error`.
 //!
 //! `cargo run --release -p hooke-sph --example dam_break_fronts -- 0.01 0.7 > front.csv`
-//! (spacing Δx in m, end time in s; SCENES.md's dam-break-2d otherwise). T = t·√(2g/L), Z = x_front/L.
+//! (spacing Δx in m, end time in s; dam-break-2d's, docs/scenes.md §7, otherwise).
+//! T = t·√(2g/L), Z = x_front/L.
 use hooke_sph::{scenes, Fluid};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

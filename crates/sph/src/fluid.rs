@@ -487,7 +487,8 @@ impl<const D: usize> Fluid<D> {
 
     /// The front along `axis`: the largest coordinate over fluid particles with at least
     /// `min_neighbours` fluid neighbours within the kernel's support (so that spray is excluded);
-    /// `None` if no particle has that many. SCENES.md's dam-break front is `front(0, 3)`.
+    /// `None` if no particle has that many. The dam-break front of docs/scenes.md §7 is
+    /// `front(0, 3)`.
     ///
     /// # Panics
     /// If `axis` ≥ `D`.

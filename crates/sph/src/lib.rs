@@ -1,6 +1,6 @@
 //! # hooke-sph
 //!
-//! Weakly compressible smoothed particle hydrodynamics (SPEC §7), beside the spring crates and
+//! Weakly compressible smoothed particle hydrodynamics (docs/sph.md), beside the spring crates and
 //! independent of them: 2D and 3D through one generic code (`const D: usize`).
 //!
 //! - [`Kernel`]: the cubic spline or Wendland's quintic, normalised per dimension, with analytic
@@ -9,10 +9,10 @@
 //!   with a counting sort, so that a step costs O(n);
 //! - [`Fluid`]: density by summation (or the continuity equation), the Tait equation of state, the
 //!   symmetric pressure force, Monaghan's artificial viscosity and gravity; symplectic Euler or
-//!   leapfrog with the step from the CFL and force conditions; walls of boundary particles or the
-//!   seed's clamp; typed errors ([`SphError`]) for bad input and for a step that would leave the
-//!   domain or go non-finite;
-//! - [`scenes`]: SCENES.md's `dam-break-2d`, `hydrostatic-2d` and `dam-break-3d`.
+//!   leapfrog with the step from the CFL and force conditions; walls of boundary particles or a
+//!   clamp onto the domain's faces; typed errors ([`SphError`]) for bad input and for a step that
+//!   would leave the domain or go non-finite;
+//! - [`scenes`]: docs/scenes.md §7's `dam-break-2d`, `hydrostatic-2d` and `dam-break-3d`.
 //!
 //! ```
 //! use hooke_sph::{scenes, Fluid};

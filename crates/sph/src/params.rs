@@ -8,7 +8,8 @@ use crate::{KernelKind, SphError};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[non_exhaustive]
 pub enum Integrator {
-    /// Symplectic Euler, seed 004's order: v⁺ = v + Δt a(x, v), x⁺ = x + Δt v⁺.
+    /// Symplectic Euler, in the 2D sketch's order (docs/model.md §6.2): v⁺ = v + Δt a(x, v),
+    /// x⁺ = x + Δt v⁺.
     #[default]
     SymplecticEuler,
     /// Leapfrog in kick-drift-kick form (velocity Verlet): second order; one force evaluation a step.
@@ -45,9 +46,10 @@ impl std::str::FromStr for Integrator {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[non_exhaustive]
 pub enum DensityMethod {
-    /// ρᵢ = Σⱼ mⱼ W(|xᵢ − xⱼ|, h) over fluid and boundary particles (SPEC §7). Near a free surface
-    /// the sum misses the kernel's outer part and ρ falls below ρ₀; the fluid's pressure is then
-    /// clamped at 0 so that this deficit does not pull the surface in (no tensile instability).
+    /// ρᵢ = Σⱼ mⱼ W(|xᵢ − xⱼ|, h) over fluid and boundary particles (docs/sph.md). Near a free
+    /// surface the sum misses the kernel's outer part and ρ falls below ρ₀; the fluid's pressure is
+    /// then clamped at 0 so that this deficit does not pull the surface in (no tensile
+    /// instability).
     Summation,
     /// The continuity equation dρᵢ/dt = Σⱼ mⱼ (vᵢ − vⱼ)·∇ᵢWᵢⱼ, integrated with the velocities
     /// (the form PySPH's and DualSPHysics' WCSPH use): no free-surface deficit, so ρ ≈ ρ₀ at the
@@ -90,8 +92,9 @@ pub enum Walls {
     /// pressures like the fluid's). A fluid particle that would leave the domain is an error.
     #[default]
     BoundaryParticles,
-    /// Seed 004's box: after each step a particle outside the domain is put back on its face and its
-    /// velocity component along the face's normal set to zero. Boundary particles may be given too.
+    /// The 2D sketch's box walls: after each step a particle outside the domain is put back on its
+    /// face and its velocity component along the face's normal set to zero. Boundary particles may
+    /// be given too.
     Clamp,
 }
 
@@ -130,11 +133,12 @@ pub struct FluidParams<const D: usize> {
     /// Rest density ρ₀ (kg/m³, in 2D too), > 0. Default 1000 (water).
     pub rest_density: f64,
     /// Numerical speed of sound c₀ (m/s), > 0: about 10× the largest expected flow speed keeps
-    /// density variations near 1 %. Default 62.6 = 10·√(2gH) for SCENES.md's 2 m column.
+    /// density variations near 1 %. Default 62.6 = 10·√(2gH) for the 2 m column of
+    /// docs/scenes.md §7.
     pub sound_speed: f64,
     /// Exponent γ of the Tait equation p = B((ρ/ρ₀)^γ − 1), B = ρ₀c₀²/γ; ≥ 1. Default 7 (water).
     pub gamma: f64,
-    /// Monaghan's artificial viscosity α, ≥ 0 (dimensionless). Default 0.1, as SCENES.md.
+    /// Monaghan's artificial viscosity α, ≥ 0 (dimensionless). Default 0.1, as docs/scenes.md §7.
     pub viscosity_alpha: f64,
     /// Gravity (m/s²), finite. Default (0, −9.81) in 2D, (0, −9.81, 0) in 3D (y up).
     pub gravity: SVector<f64, D>,

@@ -1,4 +1,4 @@
-//! SCENES.md's fluid scenes, and the water-column-in-a-tank builder behind them.
+//! The fluid scenes of docs/scenes.md §7, and the water-column-in-a-tank builder behind them.
 
 use nalgebra::SVector;
 
@@ -6,7 +6,7 @@ use crate::{FluidParams, FluidSetup, SphError, Walls};
 
 /// Layers of boundary particles behind each wall: the cubic spline's support 2h = 2.6 Δx needs 3.
 pub const WALL_LAYERS: usize = 3;
-/// Smoothing length over spacing, h = 1.3 Δx (SCENES.md).
+/// Smoothing length over spacing, h = 1.3 Δx (docs/scenes.md §7).
 pub const H_OVER_DX: f64 = 1.3;
 /// Gravity (m/s²), downwards along y.
 pub const GRAVITY: f64 = 9.81;
@@ -15,8 +15,8 @@ pub const GRAVITY: f64 = 9.81;
 ///
 /// Particles sit at the centres of a lattice over the tank: along axis a the spacing is
 /// `extent_a / round(extent_a / dx)`, which is `dx` wherever the tank's extent is a multiple of it
-/// (every axis of SCENES.md's scenes but the 3D tank's 0.5 m width, where Δx = 0.04 gives 13 layers
-/// 0.03846 m apart). Each particle has mass ρ₀ × the lattice cell's volume.
+/// (every axis of the built-in scenes but the 3D tank's 0.5 m width, where Δx = 0.04 gives 13
+/// layers 0.03846 m apart). Each particle has mass ρ₀ × the lattice cell's volume.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColumnInTank<const D: usize> {
     /// Lower corner of the tank's inside (m).
@@ -205,9 +205,9 @@ fn vector<const D: usize>(values: [f64; D]) -> SVector<f64, D> {
     SVector::from(values)
 }
 
-/// SCENES.md's dam break in 2D: a 1 m × 2 m column in the corner of a 4 m × 4 m tank with walls at
-/// x = 0, x = 4 and y = 0 (open top), ρ₀ = 1000, c₀ = 10·√(2gH), h = 1.3 Δx, α = 0.1, run to 1 s.
-/// SCENES.md's Δx is 0.02 m (5,000 fluid particles); 0.01 and 0.005 for convergence.
+/// The dam break in 2D (docs/scenes.md §7): a 1 m × 2 m column in the corner of a 4 m × 4 m tank
+/// with walls at x = 0, x = 4 and y = 0 (open top), ρ₀ = 1000, c₀ = 10·√(2gH), h = 1.3 Δx, α = 0.1,
+/// run to 1 s. Its Δx is 0.02 m (5,000 fluid particles); 0.01 and 0.005 for convergence.
 ///
 /// # Errors
 /// As [`ColumnInTank::build`].
@@ -225,8 +225,8 @@ pub fn dam_break_2d(dx: f64) -> Result<FluidScene<2>, SphError> {
     )
 }
 
-/// SCENES.md's hydrostatic tank: the same column in a 1 m wide tank (walls at x = 0, x = 1, y = 0),
-/// at rest, run for 2 s.
+/// The hydrostatic tank (docs/scenes.md §7): the same column in a 1 m wide tank (walls at x = 0,
+/// x = 1, y = 0), at rest, run for 2 s.
 ///
 /// # Errors
 /// As [`ColumnInTank::build`].
@@ -244,8 +244,8 @@ pub fn hydrostatic_2d(dx: f64) -> Result<FluidScene<2>, SphError> {
     )
 }
 
-/// SCENES.md's dam break in 3D: the 2D case extruded to 0.5 m in z, with walls at z = 0 and 0.5;
-/// SCENES.md's Δx is 0.04 m.
+/// The dam break in 3D (docs/scenes.md §7): the 2D case extruded to 0.5 m in z, with walls at z = 0
+/// and 0.5; its Δx is 0.04 m.
 ///
 /// # Errors
 /// As [`ColumnInTank::build`].
@@ -263,7 +263,7 @@ pub fn dam_break_3d(dx: f64) -> Result<FluidScene<3>, SphError> {
     )
 }
 
-/// The built-in fluid scenes: name, SCENES.md's spacing and a description.
+/// The built-in fluid scenes: name, its spacing (docs/scenes.md §7) and a description.
 pub const BUILTIN: [(&str, f64, &str); 3] = [
     (
         "dam-break-2d",

@@ -264,7 +264,7 @@ fn leaving_the_domain_stops_the_step_and_moves_nothing() {
     );
     assert_eq!(fluid.positions(), &before[..]);
 
-    // With the seed's clamp the particle stays on the domain's face instead.
+    // With the clamp onto the domain's faces the particle stays on the domain's face instead.
     s.walls = Walls::Clamp;
     let mut fluid = Fluid::new(s).unwrap();
     fluid.step().unwrap();

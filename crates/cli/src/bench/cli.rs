@@ -62,8 +62,8 @@ pub struct BenchArgs {
     #[arg(long)]
     pub hard_cases: bool,
     /// Run every integrator on the scene for 1 s at its step h and report the position error at
-    /// the end against backward Euler at h/64 and symplectic Euler at its stable step (SPEC §8's
-    /// time-discretisation error); --json writes the report.
+    /// the end against backward Euler at h/64 and symplectic Euler at its stable step (the
+    /// time-discretisation error of docs/model.md §9.3); --json writes the report.
     #[arg(long, conflicts_with_all = ["sweep", "hard_cases", "frames"])]
     pub time_error: bool,
     /// With --time-error: the simulated time (s).
@@ -110,11 +110,12 @@ pub struct BenchArgs {
 }
 
 const BENCH_HELP: &str = "\
-Measures, for one backward Euler step from SCENES.md's speed-vs-error state (10 exact steps from
-rest) and the initial guess x0 = y, each solver's wall time (median of repeats; PD's one-off
-factorisation reported apart as factor ms) and its errors against x* (Newton to a relative
-gradient of 1e-10): objective error (Phi(x) - Phi*)/(Phi(y) - Phi*), position error
-|x - x*|/|x* - x_n|, and the force residual |M(x - y) - h^2 f(x)| relative to its value at y.
+Measures, for one backward Euler step from the speed-vs-error state (10 exact steps from rest;
+docs/scenes.md §8) and the initial guess x0 = y, each solver's wall time (median of repeats;
+PD's one-off factorisation reported apart as factor ms) and its errors against x* (Newton to a
+relative gradient of 1e-10): objective error (Phi(x) - Phi*)/(Phi(y) - Phi*), position error
+|x - x*|/|x* - x_n|, and the force residual |M(x - y) - h^2 f(x)| relative to its value at y
+(docs/model.md §9).
 
 Examples:
   hooke bench cloth-40 --json out/cloth-40.json --plot out/cloth-40.png

@@ -1,7 +1,8 @@
-//! `--hard-cases`: every integrator on every hard case of SCENES.md (numerical stability).
+//! `--hard-cases`: every integrator on every hard case of docs/scenes.md §6 (numerical
+//! stability).
 //!
-//! The cases are built on cloth-N (N = 40 by default) as SCENES.md states them, with the same
-//! seeds and vertices as the project's `tests/hard_cases.rs`:
+//! The cases are built on cloth-N (N = 40 by default) as docs/scenes.md §6 states them, with the
+//! same seeds and vertices as the project's `tests/hard_cases.rs`:
 //! - `stiff h=1/30`, `stiff h=1/5`: cloth-N-stiff (k = 1e5 N/m) at both steps;
 //! - `stretched x3`: the initial state scaled by 3 in x and z; `crushed to 1%`: scaled by 0.01;
 //! - `k 1e1..1e7`: stiffness log-uniform over 6 orders of magnitude (SplitMix64, seed 2024);
@@ -35,7 +36,7 @@ use crate::sim::{
 };
 use crate::solvers::NewtonParams;
 
-/// The hard cases, in the order of SCENES.md.
+/// The hard cases, in the order of docs/scenes.md §6.
 pub const HARD_CASES: &[&str] = &[
     "stiff h=1/30",
     "stiff h=1/5",
@@ -76,7 +77,7 @@ pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except:
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HardCaseOptions {
-    /// Cloth size N. Default 40 (SCENES.md).
+    /// Cloth size N. Default 40 (docs/scenes.md §6).
     pub n: usize,
     /// Frames per run. Default 30 (1 s at h = 1/30).
     pub frames: usize,

@@ -1,5 +1,5 @@
-//! The measures of SPEC §8 for an approximate solution x of one backward Euler step, over the
-//! free DOFs:
+//! The measures of docs/model.md §9.2 for an approximate solution x of one backward Euler step,
+//! over the free DOFs:
 //!
 //! - objective error (Φ(x) − Φ*) / (Φ(x⁰) − Φ*), x⁰ = y, Φ* = Φ(x*): both differences computed by
 //!   [`NewtonProblem::objective_change`] term by term, without subtracting two rounded values of Φ

@@ -1,12 +1,12 @@
-//! Speed against error (SPEC §8): the library behind `hooke bench`.
+//! Speed against error (docs/model.md §9): the library behind `hooke bench`.
 //!
 //! One backward Euler step is solved by every solver and setting asked for, from the same state and
 //! the same initial guess x⁰ = y; each result x is timed and measured against the exact solution x*.
 //!
-//! - [`BenchProblem::prepare`] builds the step: SCENES.md's speed-vs-error state (10 steps of exact
-//!   backward Euler from rest, Newton to a relative gradient of 1e-10), its inertial target
-//!   y = x_n + h v_n + h² g, and the reference x* (Newton to 1e-10 from y), cached in a file keyed
-//!   by the scene because large scenes take minutes;
+//! - [`BenchProblem::prepare`] builds the step: the speed-vs-error state (docs/scenes.md §8; 10
+//!   steps of exact backward Euler from rest, Newton to a relative gradient of 1e-10), its inertial
+//!   target y = x_n + h v_n + h² g, and the reference x* (Newton to 1e-10 from y), cached in a file
+//!   keyed by the scene because large scenes take minutes;
 //! - [`SolverSpec`] parses `pd:1,2,5`, `newton:1,2,3`, `newton-tol:1e-4`, `cg-tol:1e-2`,
 //!   `jacobi:10`, `linearized-cg`, …;
 //! - [`run_spec`] times each setting (median of repeats, factorisations reported apart) and measures
@@ -14,7 +14,7 @@
 //!   residual);
 //! - [`write_json`], [`write_csv`], [`format_table`], [`plot_pareto`] report [`Record`]s;
 //! - [`sweep`] times one step on cloth-N for several N; [`hard_cases`] runs every integrator on the
-//!   hard cases of SCENES.md; [`time_error`] runs every integrator for 1 s and reports its
+//!   hard cases of docs/scenes.md §6; [`time_error`] runs every integrator for 1 s and reports its
 //!   time-discretisation error against small-step references.
 //!
 //! ```no_run

@@ -42,9 +42,9 @@ pub struct Record {
     /// factorisations within the step (median over repeats): part of `wall_time_s`. Null for the
     /// linearised integrator (it factors nothing).
     pub factor_time_s: Option<f64>,
-    /// (Φ(x) − Φ*) / (Φ(y) − Φ*) (SPEC §8).
+    /// (Φ(x) − Φ*) / (Φ(y) − Φ*) (docs/model.md §9.2).
     pub objective_error: Option<f64>,
-    /// |x − x*| / |x* − x_n| over the free DOFs (SPEC §8).
+    /// |x − x*| / |x* − x_n| over the free DOFs (docs/model.md §9.2).
     pub position_error: Option<f64>,
     /// ‖M(x − y) − h² f(x)‖ / ‖M(y − y) − h² f(y)‖ = ‖∇Φ(x)‖ / ‖∇Φ(y)‖, the force residual relative
     /// to its value at the initial guess y.

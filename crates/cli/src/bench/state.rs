@@ -1,5 +1,5 @@
-//! The step every solver is measured on (SCENES.md's speed-vs-error state), its exact solution x*
-//! (SPEC §8), and a cache of both keyed by the scene.
+//! The step every solver is measured on (the speed-vs-error state, docs/scenes.md §8), its exact
+//! solution x* (docs/model.md §9.1), and a cache of both keyed by the scene.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -14,10 +14,10 @@ use crate::sim::file::load_scene;
 use crate::sim::scenes::{self, AnySetup, Setup};
 use crate::sim::{ExternalForce, Integrator, Scene, Settings, Simulation, State};
 
-/// Steps of exact backward Euler from rest before the measured step (SCENES.md).
+/// Steps of exact backward Euler from rest before the measured step (docs/scenes.md §8).
 pub const STATE_STEPS: usize = 10;
 /// Relative gradient ‖∇Φ(x)‖/‖∇Φ(y)‖ of the exact solves: the 10 steps to the state and the
-/// reference x* (SPEC §8).
+/// reference x* (docs/model.md §9.1).
 pub const REFERENCE_TOLERANCE: f64 = 1e-10;
 /// Newton's iteration limit for the exact solves (cloth-160 needs about 100).
 pub const REFERENCE_MAX_ITERATIONS: usize = 500;
@@ -25,8 +25,8 @@ pub const REFERENCE_MAX_ITERATIONS: usize = 500;
 /// Where the measured step starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum StartState {
-    /// SCENES.md's speed-vs-error state: after [`STATE_STEPS`] steps of exact backward Euler
-    /// (Newton to [`REFERENCE_TOLERANCE`]) from rest.
+    /// The speed-vs-error state (docs/scenes.md §8): after [`STATE_STEPS`] steps of exact backward
+    /// Euler (Newton to [`REFERENCE_TOLERANCE`]) from rest.
     #[default]
     SpeedVsError,
     /// The scene's initial state (at rest for the canonical scenes): the first step.

@@ -1,4 +1,5 @@
-//! `--time-error`: SPEC §8's time-discretisation error, reported apart from the error of one solve.
+//! `--time-error`: the time-discretisation error of docs/model.md §9.3, reported apart from the
+//! error of one solve.
 //!
 //! Every integrator runs the scene for `duration` (1 s) at the scene's step h with its settings;
 //! its positions at the end are compared with two references run over the same time:
@@ -8,7 +9,7 @@
 //!   motion (no contact), closer to the continuous dynamics than any step of size h.
 //!
 //! The error is |x − x_ref| / |x_ref − x₀| over all vertices (pinned ones agree in every run): the
-//! position error of SPEC §8 with the start of the run in place of x_n.
+//! position error of docs/model.md §9.2 with the start of the run in place of x_n.
 
 use std::time::Instant;
 

@@ -171,7 +171,7 @@ fn f64_or_nan<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Erro
 ///
 /// The JSON goes to a temporary file in `path`'s directory, which is flushed, synced and then
 /// renamed onto `path`; on any error the temporary file is removed and `path` is left as it was.
-/// Non-finite numbers are written as `null` (see the [module documentation](self)).
+/// Non-finite numbers are written as `null` (see the module documentation).
 pub fn write_summary(path: &Path, summary: &RunSummary) -> Result<(), OutputError> {
     write_json_atomically(path, summary, true)
 }

@@ -2,10 +2,10 @@
 //!
 //! The set-up ([`step_cost_column`]): for each count N, a square column of
 //! about N particles (side 1 m, Δx = 1/round(√N)) in the corner of a 2 m × 1.5 m tank with open top
-//! and three layers of wall particles, SCENES.md's parameters otherwise (h = 1.3 Δx, c₀ = 10·√(2gH),
-//! α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up, then `--repeats`
-//! steps are timed: wall time per step, fluid particle-steps per second, and the fluid's own phase
-//! timings per step (neighbour search, density, forces, integration).
+//! and three layers of wall particles, the parameters of docs/scenes.md §7 otherwise (h = 1.3 Δx,
+//! c₀ = 10·√(2gH), α = 0.1, symplectic Euler, continuity density). Two steps are taken to warm up,
+//! then `--repeats` steps are timed: wall time per step, fluid particle-steps per second, and the
+//! fluid's own phase timings per step (neighbour search, density, forces, integration).
 //!
 //! An entry may instead name a built-in fluid scene (`hooke bench --sph 1e4,dam-break-2d`): the
 //! scene is then run as `hooke run SCENE` runs it, frames and summary written (to a temporary

@@ -8,7 +8,8 @@
 //! column = [0.25, 0.5]          # the water column, [0, column] (m), inside the tank
 //! dx = 0.025                    # lattice spacing (m), > 0
 //! open_top = true               # optional: no wall at y = tank[1] (default true)
-//! h_factor = 1.3                # optional: h = h_factor·dx, in [1, 3] (default 1.3, SCENES.md)
+//! h_factor = 1.3                # optional: h = h_factor·dx, in [1, 3] (default 1.3, as the
+//!                               # built-in scenes: docs/scenes.md §7)
 //! c0 = 31.3                     # optional: speed of sound (m/s), > 0 (default 10·√(2gH))
 //! alpha = 0.1                   # optional: Monaghan's artificial viscosity, >= 0 (default 0.1)
 //! cfl = 0.4                     # optional: CFL number C, in (0, 1] (default 0.4)

@@ -1,5 +1,5 @@
-//! The fluid (hooke-sph's weakly compressible SPH, SPEC §7) behind the command: `hooke run` of
-//! SCENES.md's `dam-break-2d`, `hydrostatic-2d` and `dam-break-3d` or of a scene file with a
+//! The fluid (hooke-sph's weakly compressible SPH, docs/sph.md) behind the command: `hooke run`
+//! of `dam-break-2d`, `hydrostatic-2d` and `dam-break-3d` (docs/scenes.md §7) or of a scene file with a
 //! `[fluid]` table ([`file`]), what such a run writes ([`run`], [`preview`]), and
 //! `hooke bench --sph COUNTS` ([`bench`]).
 //!

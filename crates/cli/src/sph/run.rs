@@ -139,8 +139,8 @@ pub struct FluidFrameRecord {
     pub t: Option<f64>,
 }
 
-/// Builds the scene `options` name: a built-in scene at `--dx` (or SCENES.md's spacing), or a
-/// scene file (its `dx` replaced by `--dx`).
+/// Builds the scene `options` name: a built-in scene at `--dx` (or its spacing in
+/// docs/scenes.md §7), or a scene file (its `dx` replaced by `--dx`).
 fn load_scene(options: &FluidRunOptions) -> Result<AnyScene, SphCliError> {
     if let Some(dx) = options.dx {
         if !(dx.is_finite() && dx > 0.0) {

@@ -27,7 +27,7 @@ const RANDOM_CHARS: usize = 6;
 /// see either the old file or the complete new one, never a partial file.
 ///
 /// The temporary file's name is unique to this call and recognisable as a leftover (see the
-/// [module documentation](self)). On any error (from `write`, the flush, the sync or the rename) the
+/// module documentation). On any error (from `write`, the flush, the sync or the rename) the
 /// temporary file is removed and the target is left untouched; only a process killed while writing
 /// leaves it, for [`remove_temporaries`] to clear. If the target exists, the new file gets its
 /// permissions; otherwise the usual ones for a new file (`0o666` less the umask on Unix, not the

@@ -66,7 +66,7 @@ pub fn objective_error(s: &mut Step, x: &[f64], solution: &[f64]) -> f64 {
     s.problem.objective_change(solution, x) / s.problem.objective_change(solution, &start)
 }
 
-/// beam-R's clamped vertices (x = 0), as SCENES.md pins them.
+/// beam-R's clamped vertices (x = 0), as docs/scenes.md §3 pins them.
 pub fn clamped(mesh: &SpringMesh<3>) -> Vec<u32> {
     mesh.positions()
         .iter()
