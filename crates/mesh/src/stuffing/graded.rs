@@ -32,9 +32,9 @@ use rayon::prelude::*;
 
 use super::lattice::BccLattice;
 use super::{
-    assemble, edge_key, final_position, manifold, quality_report, reference_position, stencils,
-    warp, within_bounds, Broken, ClosedSurface, Cut, Stuffed, Stuffing, StuffingError,
-    StuffingOptions, ALPHA, MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG, PADDING,
+    add_all_zero, assemble, edge_key, final_position, quality_report, reference_position, stencils,
+    warp, Broken, ClosedSurface, Cut, Stuffed, Stuffing, StuffingError, StuffingOptions, ALPHA,
+    PADDING,
 };
 use crate::{tetrahedron_signed_volume, Vec3};
 
@@ -408,43 +408,15 @@ pub fn tetrahedralize_graded(
         }
     }
 
-    let lattice_count = lattice.vertex_count() as u32;
-    let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
     // As in the uniform mesher: all-zero tetrahedra are a free choice within the bounds.
-    let all_zero: Vec<[u32; 4]> = all_zero
-        .into_iter()
-        .filter(|t| {
-            let [a, b, c, d] = t.map(position);
-            tetrahedron_signed_volume(&a, &b, &c, &d) > 0.0
-                && within_bounds(
-                    &a,
-                    &b,
-                    &c,
-                    &d,
-                    (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG),
-                )
-        })
-        .collect();
-    let mut kept: Vec<bool> = all_zero
-        .iter()
-        .map(|t| {
-            let [a, b, c, d] = t.map(position);
-            surface.contains(&((a + b + c + d) / 4.0))
-        })
-        .collect();
-    manifold::choose_all_zero(&stenciled, &all_zero, &mut kept, |v| {
-        v < lattice_count && signs[v as usize] == 0
-    })
-    .map_err(|v| StuffingError::UnresolvedFeature {
-        point: position(v).into(),
-        spacing: h,
-    })?;
-    stenciled.extend(
-        all_zero
-            .into_iter()
-            .zip(kept)
-            .filter_map(|(t, k)| k.then_some(t)),
-    );
+    add_all_zero(
+        &mut stenciled,
+        all_zero,
+        (&lattice, &cuts, &warped, &signs),
+        surface,
+        h,
+    )?;
+    let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
     let mesh = assemble(&stenciled, lattice.vertex_count() + cuts.len(), position, h)?;
     let seconds = start.elapsed().as_secs_f64();
     let mut report = quality_report(&mesh, None);

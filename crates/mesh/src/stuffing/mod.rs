@@ -284,51 +284,15 @@ pub fn tetrahedralize(
         reference_position(&lattice, &cuts, id)
     })
     .map_err(|b| b.at(h))?;
-    let lattice_count = lattice.vertex_count() as u32;
+    let mut tetrahedra = stenciled;
+    add_all_zero(
+        &mut tetrahedra,
+        all_zero,
+        (&lattice, &cuts, &warped, &signs),
+        surface,
+        h,
+    )?;
     let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
-    // A lattice tetrahedron whose four vertices were all warped onto the surface is not bounded
-    // by the proof (its vertices move independently; see the harness in the tests): it is a
-    // candidate only within the bounds, kept first where its centroid is inside, and the manifold
-    // repair changes that choice only where the boundary would pinch. Leaving one out only leaves
-    // out a piece between surface points.
-    let all_zero: Vec<[u32; 4]> = all_zero
-        .into_iter()
-        .filter(|t| {
-            // Oriented on the lattice, so a non-positive volume means warping turned it over.
-            let [a, b, c, d] = t.map(position);
-            tetrahedron_signed_volume(&a, &b, &c, &d) > 0.0
-                && within_bounds(
-                    &a,
-                    &b,
-                    &c,
-                    &d,
-                    (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG),
-                )
-        })
-        .collect();
-    let mut kept: Vec<bool> = all_zero
-        .iter()
-        .map(|t| {
-            let [a, b, c, d] = t.map(position);
-            surface.contains(&((a + b + c + d) / 4.0))
-        })
-        .collect();
-    manifold::choose_all_zero(&stenciled, &all_zero, &mut kept, |v| {
-        v < lattice_count && signs[v as usize] == 0
-    })
-    .map_err(|v| StuffingError::UnresolvedFeature {
-        point: position(v).into(),
-        spacing: h,
-    })?;
-    let chunks = [
-        stenciled,
-        all_zero
-            .into_iter()
-            .zip(kept)
-            .filter_map(|(t, k)| k.then_some(t))
-            .collect(),
-    ];
-    let tetrahedra: Vec<[u32; 4]> = chunks.into_iter().flatten().collect();
     let mesh = assemble(
         &tetrahedra,
         lattice.vertex_count() + cuts.len(),
@@ -371,6 +335,63 @@ fn reference_position(lattice: &BccLattice, cuts: &[Cut], id: u32) -> Vec3 {
     } else {
         lattice.position(id)
     }
+}
+
+/// Add to `tetrahedra` (the stencils' output) the all-zero tetrahedra to keep.
+///
+/// A lattice tetrahedron whose four vertices were all warped onto the surface is not bounded by
+/// the proof (its vertices move independently; see the harness in the tests): it is a candidate
+/// only if positively oriented and within the bounds, kept first where its centroid is inside,
+/// and the manifold repair changes that choice only where the boundary would pinch. Leaving one
+/// out only leaves out a piece between surface points.
+///
+/// # Errors
+/// [`StuffingError::UnresolvedFeature`] where the manifold repair cannot resolve a vertex.
+fn add_all_zero(
+    tetrahedra: &mut Vec<[u32; 4]>,
+    all_zero: Vec<[u32; 4]>,
+    (lattice, cuts, warped, signs): (&BccLattice, &[Cut], &HashMap<u32, Vec3>, &[i8]),
+    surface: &ClosedSurface,
+    h: f64,
+) -> Result<(), StuffingError> {
+    let lattice_count = lattice.vertex_count() as u32;
+    let position = |id: u32| final_position(lattice, cuts, warped, id);
+    let all_zero: Vec<[u32; 4]> = all_zero
+        .into_iter()
+        .filter(|t| {
+            // Oriented on the lattice, so a non-positive volume means warping turned it over.
+            let [a, b, c, d] = t.map(position);
+            tetrahedron_signed_volume(&a, &b, &c, &d) > 0.0
+                && within_bounds(
+                    &a,
+                    &b,
+                    &c,
+                    &d,
+                    (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG),
+                )
+        })
+        .collect();
+    let mut kept: Vec<bool> = all_zero
+        .iter()
+        .map(|t| {
+            let [a, b, c, d] = t.map(position);
+            surface.contains(&((a + b + c + d) / 4.0))
+        })
+        .collect();
+    manifold::choose_all_zero(tetrahedra, &all_zero, &mut kept, |v| {
+        v < lattice_count && signs[v as usize] == 0
+    })
+    .map_err(|v| StuffingError::UnresolvedFeature {
+        point: position(v).into(),
+        spacing: h,
+    })?;
+    tetrahedra.extend(
+        all_zero
+            .into_iter()
+            .zip(kept)
+            .filter_map(|(t, k)| k.then_some(t)),
+    );
+    Ok(())
 }
 
 /// Keep the vertices the tetrahedra use (numbered in id order), place them, and check that every
