@@ -166,7 +166,9 @@ impl<const D: usize> SpringForces<D> {
 }
 
 /// Sum `term(index)` over `0..count` in fixed chunks: each chunk serially, then the chunk sums in
-/// order, so the result does not depend on the number of threads.
+/// order, so the result does not depend on the number of threads. Allocation-free: the parallel
+/// path computes the chunk sums in batches of [`SUM_BATCH`] into an array on the stack and adds
+/// each batch to the total in order, which is the serial order of additions.
 pub fn deterministic_sum(count: usize, parallel: bool, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     let chunk_sum = |c: usize| {
         let end = ((c + 1) * CHUNK).min(count);
@@ -174,12 +176,28 @@ pub fn deterministic_sum(count: usize, parallel: bool, term: impl Fn(usize) -> f
     };
     let chunks = count.div_ceil(CHUNK);
     if parallel && count >= PARALLEL_THRESHOLD {
-        let partial: Vec<f64> = (0..chunks).into_par_iter().map(chunk_sum).collect();
-        partial.iter().sum()
+        // The serial path's `Iterator::sum` folds from -0.0; so does this, so that both give the
+        // same bits (an empty or all-(-0.0) sum included).
+        let mut total = -0.0;
+        let mut partial = [0.0; SUM_BATCH];
+        for first in (0..chunks).step_by(SUM_BATCH) {
+            let batch = &mut partial[..SUM_BATCH.min(chunks - first)];
+            batch
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, p)| *p = chunk_sum(first + k));
+            for p in batch.iter() {
+                total += *p;
+            }
+        }
+        total
     } else {
         (0..chunks).map(chunk_sum).sum()
     }
 }
+
+/// Chunk sums computed per parallel batch in [`deterministic_sum`] (a stack array of this many).
+const SUM_BATCH: usize = 64;
 
 /// Total elastic energy Σ ½ k (|r| − l)² of the springs at `positions` (J).
 pub fn spring_energy<const D: usize>(

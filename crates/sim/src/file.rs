@@ -64,7 +64,7 @@
 //! # beta = 1.0             # linearized: β in [0, 1]
 //! # linear_solver = "cg"   # linearized: "cg" or "jacobi"
 //! # iterations = 1000      # linearized: linear solver limit; newton: iteration limit; pd: iterations
-//! # tolerance = 1e-5       # linearized: relative residual; newton, newton-cg, lbfgs: step size, m/s; pd: change per iteration / h, m/s
+//! # tolerance = 1e-5       # linearized: relative residual; newton, newton-cg, lbfgs: step size, m/s; pd, pd-chebyshev: estimated distance to the solution / h, m/s
 //! # pin_method = "reduction"  # or "counter-force" (linearized, newton; pd refuses it)
 //! # relaxation = "none"    # newton: or "buckling" (sweeps and fold elimination between steps)
 //! # factor_reuse = 4       # newton: CG iterations on an earlier matrix's factor before factoring; 0: off

@@ -176,7 +176,7 @@ impl ConjugateGradient {
                 });
             }
             if curvature <= 0.0 {
-                finish(report, StopReason::IterationLimit);
+                finish(report, StopReason::NotPositiveDefinite);
                 return Err(SolveError::NotPositiveDefinite {
                     curvature,
                     report: take_report(report),

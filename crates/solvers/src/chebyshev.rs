@@ -23,7 +23,7 @@ use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 use crate::params::{self, ParamError};
-use crate::projective::{PdError, ProjectiveDynamics};
+use crate::projective::{FixedPointError, PdError, ProjectiveDynamics};
 use crate::report::StopReason;
 
 /// Settings of [`ChebyshevPd`].
@@ -42,8 +42,9 @@ pub struct ChebyshevParams {
     /// Restart to plain PD when Φ rises. Default true; `false` is the paper's unguarded method, for
     /// comparison only (it can gain energy).
     pub restart: bool,
-    /// Stop when the largest change of a position coordinate in one iteration divided by h is at
-    /// most `tolerance` (m/s), as [`crate::PdParams::tolerance`]. Default 0.
+    /// Stop when the estimated distance to the solution divided by h is at most `tolerance` (m/s),
+    /// as [`crate::PdParams::tolerance`] ([`crate::FixedPointError`], restarted with the
+    /// schedule). Default 0.
     pub tolerance: f64,
 }
 
@@ -199,6 +200,7 @@ impl<const D: usize> ChebyshevPd<D> {
         // Iterations since the start or the last restart, and the current ω.
         let (mut since, mut omega) = (0usize, 1.0);
         let rho2 = p.rate * p.rate;
+        let mut error = FixedPointError::default();
         while report.iterations < p.max_iterations {
             self.current.copy_from_slice(x);
             let change = pd.iteration(springs, y, x, &mut largest_displacement);
@@ -229,6 +231,8 @@ impl<const D: usize> ChebyshevPd<D> {
                     since = 0;
                     omega = 1.0;
                     report.restarts += 1;
+                    // The rate of the changes to come is plain PD's again.
+                    error = FixedPointError::default();
                 }
                 if rise > 0.0 || rise.is_nan() {
                     // Even the plain iterate rose: PD is at the rounding floor of its global solve
@@ -258,7 +262,7 @@ impl<const D: usize> ChebyshevPd<D> {
             report.iterations += 1;
             report.objectives.push(phi);
             report.changes.push(change);
-            if change <= p.tolerance * pd.time_step() {
+            if error.after(change) <= p.tolerance * pd.time_step() {
                 report.stop = StopReason::Converged;
                 break;
             }

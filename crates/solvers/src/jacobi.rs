@@ -140,7 +140,7 @@ impl Jacobi {
             }
             if residual > self.params.divergence_factor * first {
                 return Err(SolveError::Diverged {
-                    report: finish(report, StopReason::IterationLimit),
+                    report: finish(report, StopReason::Diverged),
                 });
             }
             if report.iterations >= self.params.max_iterations {

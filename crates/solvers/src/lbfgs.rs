@@ -183,7 +183,9 @@ pub enum LbfgsError {
 #[derive(Clone, Debug)]
 pub struct Lbfgs {
     params: LbfgsParams,
-    /// s_k = x_{k+1} − x_k, `history` rows of `n`, used as a ring.
+    /// s_k = x_{k+1} − x_k, `history + 1` rows of `n`, used as a ring: a new pair is written into
+    /// the slot after the newest, which never holds a stored pair, so a pair whose curvature test
+    /// fails leaves the stored ones (and their ρ) as they were.
     s: Vec<f64>,
     /// t_k = g_{k+1} − g_k, as `s`.
     t: Vec<f64>,
@@ -204,13 +206,13 @@ impl Lbfgs {
     /// [`ParamError`] if `params` is invalid ([`LbfgsParams::validate`]).
     pub fn new(n: usize, params: LbfgsParams) -> Result<Self, ParamError> {
         params.validate()?;
-        let m = params.history;
+        let slots = params.history + 1;
         Ok(Lbfgs {
             params,
-            s: vec![0.0; m * n],
-            t: vec![0.0; m * n],
-            rho: vec![0.0; m],
-            alpha: vec![0.0; m],
+            s: vec![0.0; slots * n],
+            t: vec![0.0; slots * n],
+            rho: vec![0.0; slots],
+            alpha: vec![0.0; slots],
             g: vec![0.0; n],
             g_new: vec![0.0; n],
             q: vec![0.0; n],
@@ -320,14 +322,14 @@ impl Lbfgs {
                     finish(&mut report, StopReason::RoundOff);
                     return Ok(report);
                 }
-                finish(&mut report, StopReason::IterationLimit);
+                finish(&mut report, StopReason::LineSearchFailed);
                 return Err(LbfgsError::LineSearchFailed { report });
             };
-            // x⁺ = x + α p; the new pair goes into the slot after the newest.
+            // x⁺ = x + α p; the new pair goes into the free slot after the newest.
             let slot = if stored == 0 {
                 0
             } else {
-                (newest + 1) % p.history
+                (newest + 1) % (p.history + 1)
             };
             let s = &mut self.s[slot * n..(slot + 1) * n];
             for ((s, x), d) in s.iter_mut().zip(x.iter_mut()).zip(&self.direction) {
@@ -365,7 +367,7 @@ impl Lbfgs {
     /// `newest`, on H₀ = `initial`.
     fn two_loop(&mut self, initial: &mut impl Preconditioner, stored: usize, newest: usize) {
         let n = self.g.len();
-        let m = self.params.history;
+        let m = self.params.history + 1;
         self.q.copy_from_slice(&self.g);
         for back in 0..stored {
             let k = (newest + m - back) % m;

@@ -74,6 +74,7 @@ pub use newton_cg::{
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use params::{ParamError, MAX_THREADS};
 pub use projective::{
-    PdContactModel, PdError, PdParams, PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT,
+    FixedPointError, PdContactModel, PdError, PdParams, PdReport, ProjectiveDynamics,
+    DEFAULT_CONTACT_WEIGHT,
 };
 pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -1474,7 +1474,7 @@ impl Newton {
                                 finish(report, StopReason::RoundOff);
                                 return Ok(());
                             }
-                            finish(report, StopReason::IterationLimit);
+                            finish(report, StopReason::LineSearchFailed);
                             return Err(Failure::LineSearchFailed);
                         }
                     }
@@ -1499,7 +1499,7 @@ impl Newton {
                 };
                 if exhausted {
                     report.failed_factorizations += failed;
-                    finish(report, StopReason::IterationLimit);
+                    finish(report, StopReason::NotPositiveDefinite);
                     return Err(Failure::NotPositiveDefinite {
                         max_shift: p.max_shift,
                     });

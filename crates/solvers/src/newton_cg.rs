@@ -329,7 +329,7 @@ impl NewtonCg {
                     finish(&mut report, StopReason::RoundOff);
                     return Ok(report);
                 }
-                finish(&mut report, StopReason::IterationLimit);
+                finish(&mut report, StopReason::LineSearchFailed);
                 return Err(NewtonCgError::LineSearchFailed { report });
             };
             for (x, s) in x.iter_mut().zip(&self.step) {

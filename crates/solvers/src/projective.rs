@@ -65,10 +65,11 @@ impl PdParams {
 pub struct PdParams {
     /// Iterations per step (the method's usual fixed budget). Default 10.
     pub max_iterations: usize,
-    /// Also stop when the largest change of a position coordinate in one iteration, divided by h,
-    /// is at most `tolerance` (m/s: the unit of Newton's step size, and a scale that does not
-    /// vanish with the motion). PD converges linearly, so the distance to the solution is larger
-    /// than the last change, by 1/(1 − ρ) for a rate ρ. Default 0: always run `max_iterations`.
+    /// Also stop when the estimated distance to the solution, divided by h, is at most `tolerance`
+    /// (m/s: Newton's step-size criterion, [`crate::Convergence::StepSize`], in the same unit and
+    /// with the same meaning). PD converges linearly, so that distance is the last change times
+    /// ρ/(1 − ρ) for its rate ρ, not the last change: [`FixedPointError`] estimates it from the
+    /// ratios of successive changes. Default 0: always run `max_iterations`.
     pub tolerance: f64,
     /// Evaluate Φ after every iteration (one extra pass over springs and vertices) for the report.
     /// Default false: benchmarks measure the bare iteration.
@@ -421,6 +422,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
             report.objectives.push(self.objective(springs, y, x));
         }
         let mut largest_displacement: f64 = 0.0;
+        let mut error = FixedPointError::default();
         while report.iterations < p.max_iterations {
             let change = self.iteration(springs, y, x, &mut largest_displacement);
             report.iterations += 1;
@@ -432,7 +434,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
                 report.stop = StopReason::NonFinite;
                 break;
             }
-            if change <= p.tolerance * self.h {
+            if error.after(change) <= p.tolerance * self.h {
                 report.stop = StopReason::Converged;
                 break;
             }
@@ -586,5 +588,44 @@ impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
         self.global.solve(&self.rhs, threads, |f, o| {
             z[D * f..D * f + D].copy_from_slice(o.as_slice());
         });
+    }
+}
+
+/// The distance from a linearly converging fixed-point iteration's iterate to its fixed point,
+/// estimated from the position changes of its iterations: a change c_k at a rate ρ leaves about
+/// c_k ρ/(1 − ρ) to go. ρ is estimated as the larger of the last two ratios c_k / c_(k−1) (one
+/// ratio can be small by accident of the first iterations); until three changes are known, or
+/// while that ratio is at least 1, the estimate is infinite: the iteration is not known to
+/// converge. Used by projective dynamics and its Chebyshev acceleration, so that their tolerance
+/// means what Newton's step-size tolerance means (a distance to the solution per h, m/s).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FixedPointError {
+    /// The last change (m), if any.
+    last_change: Option<f64>,
+    /// The last ratio of successive changes, if any.
+    last_ratio: Option<f64>,
+}
+
+impl FixedPointError {
+    /// Record `change` (m; the largest change of a position coordinate in the iteration just
+    /// made) and return the estimated distance to the fixed point (m): 0 when `change` is 0 (the
+    /// iterate is the fixed point), infinite while ρ is not yet known to be below 1.
+    pub fn after(&mut self, change: f64) -> f64 {
+        if change == 0.0 {
+            return 0.0;
+        }
+        let Some(previous) = self.last_change.replace(change) else {
+            return f64::INFINITY;
+        };
+        let ratio = change / previous;
+        let Some(earlier) = self.last_ratio.replace(ratio) else {
+            return f64::INFINITY;
+        };
+        let rate = ratio.max(earlier);
+        if rate < 1.0 {
+            change * rate / (1.0 - rate)
+        } else {
+            f64::INFINITY
+        }
     }
 }

@@ -23,6 +23,18 @@ pub enum StopReason {
     Stagnated,
     /// The objective, the residual or the iterate became NaN or infinite: not converged.
     NonFinite,
+    /// No step along a descent direction lowered the objective enough (the line search's Armijo
+    /// condition failed at every trial length) while the gradient was above its rounding floor:
+    /// not converged. Objective and gradient disagree, or the tolerance is below what they resolve
+    /// and the problem gives no rounding estimate.
+    LineSearchFailed,
+    /// The matrix or model the solver needs positive definite was not: CG met a direction of
+    /// non-positive curvature, or Newton found no definite matrix within its shift or blend
+    /// limit. Not converged.
+    NotPositiveDefinite,
+    /// The residual grew past the solver's divergence bound (Jacobi on a system that is not
+    /// diagonally dominant enough): not converged.
+    Diverged,
 }
 
 impl StopReason {
@@ -39,7 +51,7 @@ impl StopReason {
     }
 
     /// A short name for reports (`converged`, `round-off`, `iteration-limit`, `stagnated`,
-    /// `non-finite`).
+    /// `non-finite`, `line-search-failed`, `not-positive-definite`, `diverged`).
     pub fn name(self) -> &'static str {
         match self {
             StopReason::Converged => "converged",
@@ -47,6 +59,9 @@ impl StopReason {
             StopReason::IterationLimit => "iteration-limit",
             StopReason::Stagnated => "stagnated",
             StopReason::NonFinite => "non-finite",
+            StopReason::LineSearchFailed => "line-search-failed",
+            StopReason::NotPositiveDefinite => "not-positive-definite",
+            StopReason::Diverged => "diverged",
         }
     }
 }

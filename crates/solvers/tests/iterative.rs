@@ -134,6 +134,7 @@ fn cg_reports_an_indefinite_system() {
     match ConjugateGradient::default().solve(&a, &mut Identity, &[1.0, 1.0, 1.0], &mut x) {
         Err(SolveError::NotPositiveDefinite { curvature, report }) => {
             assert!(curvature <= 0.0);
+            assert_eq!(report.stop, StopReason::NotPositiveDefinite);
             assert_eq!(report.residuals.len(), report.iterations + 1);
         }
         other => panic!("expected NotPositiveDefinite, got {other:?}"),
@@ -154,6 +155,7 @@ fn jacobi_reports_divergence_on_a_non_dominant_system() {
                 report.iterations
             );
             assert!(report.residual() > 1e3 * report.residuals[0]);
+            assert_eq!(report.stop, StopReason::Diverged);
         }
         other => panic!("expected Diverged, got {other:?}"),
     }

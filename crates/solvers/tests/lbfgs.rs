@@ -138,3 +138,158 @@ proptest! {
         }
     }
 }
+
+/// One free point x ∈ ℝ² on a spring of stiffness k and rest length 1 to the origin, with the
+/// inertia ½ m |x − y|²: Φ is not convex where the spring is compressed (|x| < 1), so a curvature
+/// pair measured there can have sᵀt ≤ 0. Records every point its gradient is taken at.
+struct CompressedSpring {
+    k: f64,
+    m: f64,
+    y: [f64; 2],
+    visited: Vec<[f64; 2]>,
+}
+
+impl CompressedSpring {
+    fn gradient_at(&self, x: &[f64]) -> [f64; 2] {
+        let r = x[0].hypot(x[1]);
+        let pull = self.k * (r - 1.0) / r;
+        [
+            self.m * (x[0] - self.y[0]) + pull * x[0],
+            self.m * (x[1] - self.y[1]) + pull * x[1],
+        ]
+    }
+}
+
+impl NewtonProblem for CompressedSpring {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn objective(&mut self, x: &[f64]) -> f64 {
+        let r = x[0].hypot(x[1]);
+        let inertia = (x[0] - self.y[0]).powi(2) + (x[1] - self.y[1]).powi(2);
+        0.5 * self.m * inertia + 0.5 * self.k * (r - 1.0).powi(2)
+    }
+    fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+        self.visited.push([x[0], x[1]]);
+        g.copy_from_slice(&self.gradient_at(x));
+    }
+    fn pattern(&self) -> faer::sparse::SymbolicSparseColMatRef<'_, usize> {
+        unreachable!("L-BFGS never asks for the Hessian")
+    }
+    fn hessian(&mut self, _x: &[f64]) -> faer::sparse::SparseColMatRef<'_, usize, f64> {
+        unreachable!("L-BFGS never asks for the Hessian")
+    }
+    fn shift_diagonal(&self) -> &[f64] {
+        unreachable!("L-BFGS never asks for a shift")
+    }
+}
+
+/// L-BFGS with one pair and H₀ = I, written out plainly: the points its gradient is taken at.
+/// A pair is kept only if sᵀt > ε |s| |t|; a rejected pair leaves the kept one in use.
+fn reference_lbfgs_history_1(
+    problem: &mut CompressedSpring,
+    start: [f64; 2],
+    params: LbfgsParams,
+) -> Vec<[f64; 2]> {
+    let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
+    let mut x = start;
+    let mut g = problem.gradient_at(&x);
+    let mut visited = vec![x];
+    let mut pair: Option<([f64; 2], [f64; 2], f64)> = None;
+    for _ in 0..params.max_iterations {
+        let accepted = loop {
+            let mut d = [-g[0], -g[1]];
+            if let Some((s, t, rho)) = pair {
+                let a = rho * dot(s, g);
+                let q = [g[0] - a * t[0], g[1] - a * t[1]];
+                let b = rho * dot(t, q);
+                d = [-(q[0] + (a - b) * s[0]), -(q[1] + (a - b) * s[1])];
+            }
+            let slope = dot(g, d);
+            let mut alpha = 1.0;
+            let mut found = None;
+            if slope < 0.0 {
+                for _ in 0..=params.max_halvings {
+                    let trial = [x[0] + alpha * d[0], x[1] + alpha * d[1]];
+                    let change = problem.objective(&trial) - problem.objective(&x);
+                    if change <= params.armijo * alpha * slope {
+                        found = Some([alpha * d[0], alpha * d[1]]);
+                        break;
+                    }
+                    alpha *= 0.5;
+                }
+            }
+            if found.is_some() || pair.is_none() {
+                break found;
+            }
+            pair = None; // the retry along −H₀ g
+        };
+        let Some(s) = accepted else { break };
+        x = [x[0] + s[0], x[1] + s[1]];
+        let g_new = problem.gradient_at(&x);
+        visited.push(x);
+        let t = [g_new[0] - g[0], g_new[1] - g[1]];
+        g = g_new;
+        let curvature = dot(s, t);
+        if curvature > f64::EPSILON * dot(s, s).sqrt() * dot(t, t).sqrt() {
+            pair = Some((s, t, 1.0 / curvature));
+        }
+    }
+    visited
+}
+
+/// A curvature pair that fails its test must not displace the stored one: with a history of one
+/// pair, on a compressed spring whose Φ is not convex, L-BFGS takes exactly the steps of the plain
+/// algorithm above (the same iterates to round-off of the two-loop's arithmetic), and skips pairs.
+#[test]
+fn a_rejected_pair_leaves_the_stored_pair_in_use() {
+    let params = LbfgsParams {
+        convergence: Convergence::RelativeGradient,
+        tolerance: 1e-8,
+        max_iterations: 40,
+        history: 1,
+        ..Default::default()
+    };
+    let make = || CompressedSpring {
+        k: 5.0,
+        m: 1.0,
+        y: [-0.5, 0.2],
+        visited: Vec::new(),
+    };
+    let start = [0.3, -0.2];
+    let mut problem = make();
+    let mut x = start.to_vec();
+    let mut lbfgs = Lbfgs::new(2, params).unwrap();
+    let report = lbfgs
+        .minimize(&mut problem, &mut hooke_solvers::Identity, &mut x)
+        .unwrap();
+    let expected = reference_lbfgs_history_1(&mut make(), start, params);
+    assert!(
+        report.skipped_pairs >= 1,
+        "the case must reject a pair: {report:?}"
+    );
+    // The first rejection must be followed by further steps, or the stored pair is never used.
+    assert!(
+        problem.visited.len() >= 3 + report.skipped_pairs,
+        "{report:?}"
+    );
+    let compared = problem.visited.len().min(expected.len());
+    assert!(
+        compared >= 4,
+        "{} and {} iterates",
+        problem.visited.len(),
+        expected.len()
+    );
+    for (k, (got, want)) in problem
+        .visited
+        .iter()
+        .zip(&expected)
+        .take(compared)
+        .enumerate()
+    {
+        // Both follow the same arithmetic up to the order of a few products: 1e-12 of the
+        // problem's length scale (the spring's rest length, 1 m) is far below any step here.
+        let gap = (got[0] - want[0]).hypot(got[1] - want[1]);
+        assert!(gap <= 1e-12, "iterate {k}: {got:?} against {want:?}");
+    }
+}

@@ -16,6 +16,8 @@ struct BackwardEuler {
     hessian: SparseColMat<usize, f64>,
     shift_diagonal: Vec<f64>,
     poison: bool,
+    /// Added to every gradient entry: a gradient that disagrees with Φ (0 for the true one).
+    tilt: f64,
 }
 
 fn v(x: &[f64], i: usize) -> Vector3<f64> {
@@ -51,6 +53,7 @@ impl BackwardEuler {
             hessian: SparseColMat::try_new_from_triplets(3 * n, 3 * n, &[Triplet::new(0, 0, 0.0)])
                 .unwrap(),
             poison: false,
+            tilt: 0.0,
         };
         let x = problem.y.clone();
         problem.assemble(&x);
@@ -135,7 +138,7 @@ impl NewtonProblem for BackwardEuler {
 
     fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
         for (k, g) in g.iter_mut().enumerate() {
-            *g = self.mass[k / 3] * (x[k] - self.y[k]);
+            *g = self.mass[k / 3] * (x[k] - self.y[k]) + self.tilt;
         }
         for &(i, j, k, l) in &self.springs {
             let r = v(x, i) - v(x, j);
@@ -312,6 +315,29 @@ fn non_finite_objectives_are_reported() {
         newton.minimize(&mut problem, &mut x),
         Err(NewtonError::NonFinite { .. })
     ));
+}
+
+/// At Φ's minimiser, a gradient that disagrees with Φ points along directions that raise it: every
+/// line search fails, and the error's report says so (not "iteration limit").
+#[test]
+fn a_failed_line_search_is_the_stop_reason() {
+    let y = start(3, 1.0);
+    let mut problem = BackwardEuler::grid(3, 10.0, 0.1, y.clone());
+    let mut newton = Newton::new(problem.pattern(), NewtonParams::default()).unwrap();
+    let mut x: Vec<f64> = y.iter().map(|c| c * 1.1).collect();
+    assert!(newton
+        .minimize(&mut problem, &mut x)
+        .unwrap()
+        .stop
+        .is_converged());
+    // A tilt of 1 N·s²/m-scaled units is far above the converged gradient and its rounding.
+    problem.tilt = 1.0;
+    match newton.minimize(&mut problem, &mut x) {
+        Err(NewtonError::LineSearchFailed { report }) => {
+            assert_eq!(report.stop, StopReason::LineSearchFailed, "{report:?}");
+        }
+        other => panic!("expected a failed line search, got {other:?}"),
+    }
 }
 
 #[test]

@@ -384,7 +384,9 @@ proptest! {
                     match built.unwrap().minimize(&mut step, &mut pd, &mut x) {
                         Ok(r) => prop_assert!(r.iterations <= lbfgs.max_iterations.min(BOUND)),
                         // A search of zero halvings may find no decrease: a typed error.
-                        Err(LbfgsError::LineSearchFailed { .. }) => {}
+                        Err(LbfgsError::LineSearchFailed { report }) => {
+                            prop_assert_eq!(report.stop, StopReason::LineSearchFailed);
+                        }
                         Err(e) => prop_assert!(false, "{e}"),
                     }
                 }
@@ -403,7 +405,9 @@ proptest! {
                     let mut x = start.clone();
                     match built.unwrap().minimize(&mut step, &mut pd, &mut x) {
                         Ok(r) => prop_assert!(r.iterations <= cg.max_iterations.min(BOUND)),
-                        Err(NewtonCgError::LineSearchFailed { .. }) => {}
+                        Err(NewtonCgError::LineSearchFailed { report }) => {
+                            prop_assert_eq!(report.stop, StopReason::LineSearchFailed);
+                        }
                         Err(e) => prop_assert!(false, "{e}"),
                     }
                 }
