@@ -63,7 +63,7 @@ pub fn load_setup(name: &str) -> Result<Setup<3>, BenchError> {
         AnySetup::Two(s) => {
             return Err(BenchError::Unsupported {
                 scene: s.name,
-                what: "two dimensions (the benchmark measures 3D backward Euler steps)".into(),
+                what: "a 2D mesh (the benchmark measures 3D backward Euler steps)".into(),
             })
         }
     };
