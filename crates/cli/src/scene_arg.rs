@@ -163,3 +163,15 @@ pub(crate) fn hard_integrator_help() -> String {
         crate::bench::HARD_INTEGRATORS.join(", ")
     )
 }
+
+/// `hooke bench`'s help of `--sph`: the built-in fluid scenes it runs whole.
+pub(crate) fn bench_sph_help() -> String {
+    let fluid: Vec<&str> = crate::sph::builtin_scenes().map(|(name, _)| name).collect();
+    format!(
+        "The fluid instead: time a 2D WCSPH step for each particle count, comma separated (e.g. \
+         1e4,1e5), with the fluid's phase split, as a table (--json FILE, --plot FILE.png; \
+         --repeats timed steps per count); an entry naming a built-in fluid scene ({}) runs that \
+         scene whole as `hooke run` does and reports its wall time and particle-steps per second",
+        fluid.join(", ")
+    )
+}

@@ -91,9 +91,10 @@ pub struct BenchArgs {
     pub no_cache: bool,
     /// The fluid instead: time a 2D WCSPH step for each particle count, comma separated (e.g.
     /// 1e4,1e5), with the fluid's phase split, as a table (--json FILE, --plot FILE.png; --repeats
-    /// timed steps per count); an entry naming a built-in fluid scene (dam-break-2d) runs that
-    /// scene whole as `hooke run` does and reports its wall time and particle-steps per second.
-    #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"])]
+    /// timed steps per count); an entry naming a built-in fluid scene (dam-break-2d; the help
+    /// lists them) runs that scene whole as `hooke run` does and reports its wall time and
+    /// particle-steps per second.
+    #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"], help = crate::scene_arg::bench_sph_help())]
     pub sph: Option<String>,
     /// With --sph: number the column's fluid particles in a fixed random order, as a long run's
     /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
