@@ -90,6 +90,7 @@ fn hessian(x: &[f64]) -> DMatrix<f64> {
     h
 }
 
+// README: begin
 fn run() {
     // A bent chain: segments of 0.4 m and 0.3 m at about 50°.
     let x = [0.0, 0.0, 0.0, 0.4, 0.05, 0.0, 0.55, 0.3, 0.1];
@@ -123,6 +124,7 @@ fn run() {
     );
     assert!((&analytic - analytic.transpose()).amax() <= 1e-12 * scale);
 }
+// README: end
 
 fn main() {
     run();

@@ -1,5 +1,6 @@
 //! The README's library example: a 20×20 cloth pinned at two corners swings down for one second.
 
+// README: begin
 use hooke::mesh::generators;
 use hooke::sim::{ExternalForce, Pins, Scene, Settings, Simulation};
 use nalgebra::Vector3;
@@ -30,3 +31,4 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("after 1 s the cloth hangs down to y = {lowest:.3} m");
     Ok(())
 }
+// README: end

@@ -294,7 +294,7 @@ fn bad_arguments_exit_1_with_a_message() {
         ),
         (&["bench", "no-such-scene"][..], "unknown scene"),
         (&["bench", "--sweep", "M=3"][..], "invalid --sweep"),
-        (&["bench", "seed-2d"][..], "2D scene"),
+        (&["bench", "seed-2d"][..], "2D mesh"),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_hooke"))
             .args(args)

@@ -384,3 +384,63 @@ fn bench_sph_prints_a_row_and_writes_json() {
 
     fails_with(&["bench", "--sph", "1e4,lots"], &["--sph", "lots"]);
 }
+
+#[test]
+fn a_fluid_run_writes_its_summary_during_the_run() {
+    // Halted right after frame 20 (a kill there), the run leaves summary.json with frames 0..=20:
+    // it is rewritten every 10 frames, as a spring run's is every 100. dx = 0.2 m: 50 particles.
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_hooke"))
+        .args([
+            "run",
+            "dam-break-2d",
+            "--dx",
+            "0.2",
+            "--steps",
+            "25",
+            "-q",
+            "--out",
+        ])
+        .arg(dir.path())
+        .env("HOOKE_TEST_HALT", "after-frame:20")
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(70), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("halted at after-frame:20"),
+        "{}",
+        stderr(&out)
+    );
+    let summary = read_json(&dir.path().join("summary.json"));
+    let frames = summary["frames"].as_array().unwrap();
+    let numbers: Vec<u64> = frames
+        .iter()
+        .map(|f| f["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(numbers, (0..=20).collect::<Vec<u64>>());
+    assert!(
+        !dir.path().join("preview.png").exists(),
+        "the run did not finish"
+    );
+    // Halted at frame 9, before the first rewrite, it leaves no summary at all.
+    let early = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_hooke"))
+        .args([
+            "run",
+            "dam-break-2d",
+            "--dx",
+            "0.2",
+            "--steps",
+            "25",
+            "-q",
+            "--out",
+        ])
+        .arg(early.path())
+        .env("HOOKE_TEST_HALT", "after-frame:9")
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(70), "{}", stderr(&out));
+    assert!(!early.path().join("summary.json").exists());
+}

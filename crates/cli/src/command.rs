@@ -81,13 +81,13 @@ enum Command {
 /// The arguments of `hooke run`; a checkpoint records them (see [`RunArgs::for_checkpoint`]).
 #[derive(clap::Args, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct RunArgs {
-    /// A built-in scene name (see `hooke scenes`) or a scene file (.toml).
-    #[arg(default_value = DEFAULT_SCENE)]
+    /// A built-in scene name (see `hooke scenes`) or a scene file (.toml); the help lists the
+    /// names (from the lists `hooke scenes` prints).
+    #[arg(default_value = DEFAULT_SCENE, help = crate::scene_arg::run_scene_help())]
     scene: String,
-    /// Time integrator: explicit-euler, symplectic-euler, linearized (linearised implicit Euler, β
-    /// family), newton (backward Euler by Newton) or pd (backward Euler by projective dynamics).
-    /// Default: the scene's. Fluid scenes: symplectic-euler or leapfrog.
-    #[arg(long, value_name = "NAME")]
+    /// Time integrator, by name; the help lists every one the parser accepts (from
+    /// `Integrator::ALL`). Default: the scene's.
+    #[arg(long, value_name = "NAME", help = crate::scene_arg::run_integrator_help())]
     integrator: Option<String>,
     /// β of the linearized integrator, in [0, 1]: 0 explicit, 0.5 midpoint-like, 1 linearised
     /// backward Euler (default 1).
@@ -235,6 +235,9 @@ enum Format {
 enum CliError {
     #[error("unknown scene {0:?}: not a built-in scene (see `hooke scenes`) and not a file")]
     UnknownScene(String),
+    /// The scene argument names something else than a scene (a mesh file): why, and what to do.
+    #[error("{0}")]
+    NotAScene(String),
     #[error(transparent)]
     SceneFile(#[from] SceneFileError),
     #[error(transparent)]
@@ -336,6 +339,9 @@ fn run(args: &RunArgs) -> Result<(), CliError> {
     if crate::sph::is_builtin(&args.scene) || (path.is_file() && crate::sph::is_fluid_file(path)) {
         return run_fluid(args);
     }
+    if let Some(hint) = crate::scene_arg::mesh_file_hint(&args.scene) {
+        return Err(CliError::NotAScene(hint));
+    }
     if args.dx.is_some() {
         return Err(CliError::Argument {
             name: "dx",
@@ -423,7 +429,7 @@ fn run_setup<const D: usize>(
             .apply_options(&options)
             .map_err(|e| CliError::Argument {
                 name,
-                reason: e.to_string(),
+                reason: flag_reason(e),
             })?;
     }
     if let Some(pins) = parse_flag::<PinMethod>(&args.pin_method, "pin-method")? {
@@ -456,7 +462,7 @@ fn run_setup<const D: usize>(
             .and_then(|limit| setup.settings.set_energy_limit(limit))
             .map_err(|e| CliError::Argument {
                 name: "energy-limit",
-                reason: e.to_string(),
+                reason: flag_reason(e),
             })?;
     }
 
@@ -820,6 +826,16 @@ where
             })
         })
         .transpose()
+}
+
+/// Why a flag's value was refused, in the flag's words: the library names the option it set
+/// (`invalid iterations = 0: must be at least 1 for newton`), which the flag's name already says,
+/// so only the value and the rule are kept (`0: must be at least 1 for newton`).
+fn flag_reason(error: SimError) -> String {
+    match error {
+        SimError::InvalidParameter { value, reason, .. } => format!("{value}: {reason}"),
+        other => other.to_string(),
+    }
 }
 
 /// `hooke run` of a fluid scene: the spring integrators' options are refused.

@@ -9,8 +9,9 @@ use hooke_editor::{Editor, EditorError, EditorParams, Renderer, Script, StateRec
 /// `hooke edit` arguments.
 #[derive(clap::Args, Debug)]
 pub struct EditArgs {
-    /// A 2D scene file to open (as `hooke run` reads it; `s` in the editor saves one). Without it
-    /// the editor starts with three particles (docs/editor.md).
+    /// A 2D scene file to open (as `hooke run` reads it; `s` in the editor saves one), or the
+    /// built-in 2D scene seed-2d. Without it the editor starts with three particles
+    /// (docs/editor.md).
     pub file: Option<PathBuf>,
     /// Replay this event script headless instead of opening a window:
     /// {"frames": N, "events": [{"frame": 0, "kind": "click", "x": 0.3, "y": 0.5}, ..]}.
@@ -68,6 +69,10 @@ pub enum EditError {
         /// Why.
         reason: String,
     },
+    /// The scene argument names something the editor does not open (a mesh file, a 3D or fluid
+    /// scene): why, and what to use.
+    #[error("{0}")]
+    NotAnEditableScene(String),
     /// The window could not run.
     #[error(transparent)]
     Window(#[from] hooke_editor::window::WindowError),
@@ -80,7 +85,7 @@ pub enum EditError {
 pub fn run(args: &EditArgs) -> Result<(), EditError> {
     let params = EditorParams::default();
     let mut editor = match &args.file {
-        Some(path) => Editor::open(params, path)?,
+        Some(path) => open(params, path)?,
         None => Editor::seed(params)?,
     };
     match (&args.replay, &args.frames) {
@@ -102,6 +107,34 @@ pub fn run(args: &EditArgs) -> Result<(), EditError> {
             hooke_editor::window::run(&mut editor, &settings)?;
             Ok(())
         }
+    }
+}
+
+/// The editor on the scene `path` names: a 2D scene file, or the built-in seed-2d; the other
+/// built-in scenes, fluid scenes and mesh files are refused with what to use instead.
+fn open(params: EditorParams, path: &Path) -> Result<Editor, EditError> {
+    let text = path.to_string_lossy();
+    let refusal = crate::scene_arg::mesh_file_hint(&text).or_else(|| {
+        crate::scene_arg::fluid_scene_hint(&text, "the editor edits 2D mass-spring scenes")
+    });
+    if let Some(reason) = refusal {
+        return Err(EditError::NotAnEditableScene(reason));
+    }
+    if path.exists() {
+        return Ok(Editor::open(params, path)?);
+    }
+    match crate::sim::scenes::builtin(&text) {
+        Some(Ok(crate::sim::scenes::AnySetup::Two(setup))) => {
+            Ok(Editor::from_setup(params, &setup)?)
+        }
+        Some(Ok(crate::sim::scenes::AnySetup::Three(_))) => {
+            Err(EditError::NotAnEditableScene(format!(
+                "{text} is a built-in 3D scene (`hooke run {text}` runs it); the editor edits 2D \
+                 scenes: seed-2d or a 2D scene file"
+            )))
+        }
+        Some(Err(e)) => Err(EditError::NotAnEditableScene(format!("{text}: {e}"))),
+        None => Ok(Editor::open(params, path)?),
     }
 }
 

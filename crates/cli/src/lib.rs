@@ -18,6 +18,7 @@ mod command;
 pub mod edit_command;
 mod mesh_command;
 pub mod output;
+mod scene_arg;
 mod sph;
 mod test_hook;
 

@@ -4,7 +4,8 @@
 //! - `HOOKE_TEST_HALT=after-frame:K` halts right after frame K is written, with whatever is due at
 //!   frame K (checkpoint, `timings.json`, periodic `summary.json`);
 //! - `HOOKE_TEST_HALT=in-frame:K` halts in the middle of writing frame K: half of its bytes are in
-//!   its temporary file, synced, and the file is not renamed onto `frame_K`.
+//!   its temporary file, synced, and the file is not renamed onto `frame_K` (spring runs only; a
+//!   fluid run halts only after a frame).
 //!
 //! At the point, the process prints `halted at after-frame:K` (or `in-frame:K`) on standard error
 //! and then waits for its standard input to close, so a test that pipes standard input reads the

@@ -153,8 +153,8 @@ pub enum SimError {
     #[error(
         "step {step}: the total energy rose to {energy:.3e} J from {initial:.3e} J, beyond the \
          limit {limit:.3e} J of a scene without energy sources: the {integrator} run is unstable \
-         (try a smaller step, more substeps, or backward Euler: newton, pd; the limit is the \
-         energy_limit setting, `--energy-limit FACTOR|off`)"
+         ({advice}; the limit is the energy_limit setting, `--energy-limit FACTOR|off`)",
+        advice = energy_growth_advice(integrator)
     )]
     EnergyGrowth {
         /// The step (1-based) after which it happened.
@@ -178,6 +178,36 @@ pub enum SimError {
         /// "position" or "velocity".
         quantity: &'static str,
     },
+}
+
+/// What helps a run of `integrator` (its name, as [`crate::Integrator::name`]) whose energy grew,
+/// in the command's flags and the scene file's keys (docs/formats.md §1.8): the explicit methods
+/// are stable only below their step bound (more substeps) or by an implicit integrator; the
+/// linearised step is a single Newton iteration (backward Euler solved to convergence); backward
+/// Euler itself dissipates energy, so with it the growth comes from a solve that stopped short
+/// (more iterations, a tighter tolerance) or from a step too large for the solve (a smaller one).
+pub(crate) fn energy_growth_advice(integrator: &str) -> &'static str {
+    match integrator {
+        "explicit-euler" | "symplectic-euler" => {
+            "try more substeps (`--substeps`, integrator.substeps) or a backward Euler integrator \
+             (`--integrator newton` or `pd`)"
+        }
+        "linearized" => {
+            "the linearized step is one Newton iteration of backward Euler: try backward Euler \
+             solved to convergence (`--integrator newton` or `pd`), or a smaller step (`--dt`, \
+             integrator.time_step)"
+        }
+        "pd" | "pd-chebyshev" => {
+            "backward Euler dissipates energy, so the iterations stopped short of it: try more \
+             iterations per step (`--iterations`, integrator.iterations), a smaller step (`--dt`, \
+             integrator.time_step), or `--integrator newton`"
+        }
+        _ => {
+            "backward Euler dissipates energy, so the solve stopped short of it: try a tighter \
+             tolerance (`--tolerance`, integrator.tolerance), more iterations (`--iterations`, \
+             integrator.iterations), or a smaller step (`--dt`, integrator.time_step)"
+        }
+    }
 }
 
 impl SimError {
@@ -251,5 +281,45 @@ pub(crate) fn finite_vector<const D: usize>(
             format!("{:?}", value.as_slice()),
             "must be finite",
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The watchdog never advises a run to switch to the integrator it already uses, and each
+    /// family's advice names what helps it.
+    #[test]
+    fn energy_advice_depends_on_the_integrator() {
+        let message = |integrator: &'static str| {
+            SimError::EnergyGrowth {
+                step: 3,
+                integrator,
+                energy: 2.0,
+                initial: 1.0,
+                limit: 1.5,
+            }
+            .to_string()
+        };
+        for integrator in ["explicit-euler", "symplectic-euler"] {
+            let text = message(integrator);
+            assert!(text.contains("--substeps"), "{text}");
+            assert!(text.contains("--integrator newton"), "{text}");
+        }
+        let text = message("linearized");
+        assert!(text.contains("--integrator newton"), "{text}");
+        for integrator in crate::Integrator::ALL.iter().filter(|i| !i.is_explicit()) {
+            let text = message(integrator.name());
+            assert!(!text.contains("--substeps"), "{integrator}: {text}");
+            assert!(
+                !text.contains(&format!("--integrator {integrator}")),
+                "{integrator} is advised to switch to itself: {text}"
+            );
+            if *integrator != crate::Integrator::Linearized {
+                assert!(text.contains("--iterations"), "{text}");
+                assert!(text.contains("--dt"), "{text}");
+            }
+        }
     }
 }

@@ -11,6 +11,7 @@ use std::str::FromStr;
 use hooke_assembly::Definiteness;
 
 use crate::SimError;
+use hooke_solvers::ParamError;
 
 /// A time integration method (docs/model.md §6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -618,20 +619,24 @@ impl Settings {
     /// # Errors
     /// [`SimError::InvalidParameter`] for β or a linear solver for another integrator than
     /// `linearized`, iterations or a tolerance for an explicit integrator (which solves nothing),
-    /// and the linearised integrator's values out of range; [`SimError::SolverParameter`] for
-    /// Newton's and PD's (naming the field and its range).
+    /// and every value out of its solver's range, named as the option is (`iterations`,
+    /// `tolerance`, `factor reuse`) with the allowed range.
     pub fn apply_options(&mut self, options: &SolverOptions) -> Result<(), SimError> {
         let mut candidate = *self;
         candidate.apply_unchecked(options)?;
-        match self.integrator {
-            Integrator::Linearized => candidate.linearized.validate()?,
-            Integrator::Newton => candidate.newton.validate()?,
-            Integrator::ProjectiveDynamics => candidate.pd.validate()?,
-            Integrator::Lbfgs => candidate.lbfgs.validate()?,
-            Integrator::NewtonCg => candidate.newton_cg.validate()?,
-            Integrator::ChebyshevPd => candidate.chebyshev.validate()?,
-            _ => {}
+        // The linearised integrator's checks name the options already.
+        if self.integrator == Integrator::Linearized {
+            candidate.linearized.validate()?;
         }
+        let checked = match self.integrator {
+            Integrator::Newton => candidate.newton.validate(),
+            Integrator::ProjectiveDynamics => candidate.pd.validate(),
+            Integrator::Lbfgs => candidate.lbfgs.validate(),
+            Integrator::NewtonCg => candidate.newton_cg.validate(),
+            Integrator::ChebyshevPd => candidate.chebyshev.validate(),
+            _ => Ok(()),
+        };
+        checked.map_err(|e| option_error(self.integrator, e))?;
         *self = candidate;
         Ok(())
     }
@@ -771,6 +776,31 @@ impl Settings {
             _ => SolverOptions::default(),
         }
     }
+}
+
+/// A solver's range error about a field that a [`SolverOptions`] option sets, in the option's
+/// words (`iterations`, `tolerance`, `factor reuse`: the names of the scene file's keys and the
+/// command's flags, docs/formats.md §1.8) instead of the solver's field (`NewtonParams::max_iterations`),
+/// which the user of the options never named. Other fields keep the solver's error.
+fn option_error(integrator: Integrator, error: ParamError) -> SimError {
+    let field = error.field();
+    let option = if field == "FactorReuse::max_iterations" {
+        "factor reuse"
+    } else if field.starts_with("FactorReuse::") || field.contains('.') {
+        return SimError::SolverParameter(error);
+    } else if field.ends_with("::max_iterations") {
+        "iterations"
+    } else if field.ends_with("::tolerance") {
+        "tolerance"
+    } else {
+        return SimError::SolverParameter(error);
+    };
+    let (value, allowed) = match error {
+        ParamError::Real { value, allowed, .. } => (value.to_string(), allowed),
+        ParamError::Count { value, allowed, .. } => (value.to_string(), allowed),
+        _ => return SimError::SolverParameter(error),
+    };
+    SimError::invalid(option, value, format!("must be {allowed} for {integrator}"))
 }
 
 #[cfg(test)]

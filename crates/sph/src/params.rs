@@ -17,6 +17,9 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// Every integrator, in the order the command lists them.
+    pub const ALL: &'static [Integrator] = &[Integrator::SymplecticEuler, Integrator::Leapfrog];
+
     /// The name used in scene files and summaries: `symplectic-euler` or `leapfrog`.
     pub fn name(self) -> &'static str {
         match self {

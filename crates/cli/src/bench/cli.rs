@@ -16,18 +16,13 @@ use crate::bench::{format_time_error, read_csv, time_error, TimeErrorOptions};
 #[command(after_help = BENCH_HELP)]
 pub struct BenchArgs {
     /// A built-in scene (e.g. cloth-40, beam-4) or a scene file; not used with --sweep or
-    /// --hard-cases.
-    #[arg(default_value = "cloth-40")]
+    /// --hard-cases. The help lists the built-in scenes by name.
+    #[arg(default_value = "cloth-40", help = crate::scene_arg::bench_scene_help())]
     pub scene: String,
-    /// Solver and settings, repeatable: pd:1,2,5 (iterations), pd-tol:1e-3, newton:1,2,3
-    /// (iterations), newton-tol:1e-4, cg:10 and cg-tol:1e-2 (linearised step, CG), jacobi:10 and
-    /// jacobi-tol:1e-2 (linearised step, block Jacobi), linearized-cg, linearized-jacobi,
-    /// lbfgs:20,50 and lbfgs-tol:1e-6 (L-BFGS on PD's factor), chebyshev:10,50 (Chebyshev PD),
-    /// newton-cg:2,5 and newton-cg-tol:1e-8 (inexact Newton, PCG), newton-relaxed:3 and
-    /// newton-relaxed-tol:1e-8 (Newton with the buckling relaxation). A name alone takes its
-    /// default settings. Default: pd, newton, newton-tol, cg-tol, jacobi,
-    /// linearized-cg (with --sweep: pd:10, newton-tol:1e-8, linearized-cg).
-    #[arg(long = "solver", value_name = "SPEC")]
+    /// Solver and settings, repeatable: `NAME` or `NAME:V1,V2,…` (one run per value), e.g.
+    /// pd:1,2,5 or newton-tol:1e-4; the help lists every [`SolverKind`](crate::bench::SolverKind) with its values. A name
+    /// alone takes its default settings.
+    #[arg(long = "solver", value_name = "SPEC", help = crate::scene_arg::bench_solver_help())]
     pub solvers: Vec<String>,
     /// Write the records as a JSON array.
     #[arg(long, value_name = "FILE")]
@@ -77,12 +72,12 @@ pub struct BenchArgs {
     #[arg(long, value_name = "N", requires = "hard_cases")]
     pub hard_scene_frames: Option<usize>,
     /// With --hard-cases: run only this case (repeatable; default: every cloth case, then every
-    /// scene case).
-    #[arg(long = "hard-case", value_name = "NAME", requires = "hard_cases")]
+    /// scene case; the help lists them).
+    #[arg(long = "hard-case", value_name = "NAME", requires = "hard_cases", help = crate::scene_arg::hard_case_help())]
     pub hard_case_names: Vec<String>,
     /// With --hard-cases: run only this integrator (repeatable; default: every one of the
-    /// matrix).
-    #[arg(long = "hard-integrator", value_name = "NAME", requires = "hard_cases")]
+    /// matrix; the help lists them).
+    #[arg(long = "hard-integrator", value_name = "NAME", requires = "hard_cases", help = crate::scene_arg::hard_integrator_help())]
     pub hard_integrators: Vec<String>,
     /// Timed repeats of each step after one warm-up run; the median is reported. Steps longer than
     /// 2 s are timed once.
@@ -96,9 +91,10 @@ pub struct BenchArgs {
     pub no_cache: bool,
     /// The fluid instead: time a 2D WCSPH step for each particle count, comma separated (e.g.
     /// 1e4,1e5), with the fluid's phase split, as a table (--json FILE, --plot FILE.png; --repeats
-    /// timed steps per count); an entry naming a built-in fluid scene (dam-break-2d) runs that
-    /// scene whole as `hooke run` does and reports its wall time and particle-steps per second.
-    #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"])]
+    /// timed steps per count); an entry naming a built-in fluid scene (dam-break-2d; the help
+    /// lists them) runs that scene whole as `hooke run` does and reports its wall time and
+    /// particle-steps per second.
+    #[arg(long, value_name = "COUNTS", conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv"], help = crate::scene_arg::bench_sph_help())]
     pub sph: Option<String>,
     /// With --sph: number the column's fluid particles in a fixed random order, as a long run's
     /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
@@ -108,6 +104,9 @@ pub struct BenchArgs {
     #[arg(long, short)]
     pub quiet: bool,
 }
+
+/// The solvers `--sweep` times when no `--solver` is given.
+pub(crate) const SWEEP_DEFAULT_SOLVERS: &[&str] = &["pd:10", "newton-tol:1e-8", "linearized-cg"];
 
 const BENCH_HELP: &str = "\
 Measures, for one backward Euler step from the speed-vs-error state (10 exact steps from rest;
@@ -212,7 +211,7 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         let sizes = SweepOptions::parse_sizes(text)?;
         let specs = match specs {
             Some(s) => s,
-            None => ["pd:10", "newton-tol:1e-8", "linearized-cg"]
+            None => SWEEP_DEFAULT_SOLVERS
                 .iter()
                 .map(|s| s.parse())
                 .collect::<Result<Vec<_>, _>>()?,
@@ -246,6 +245,8 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         return Ok(());
     }
 
+    // Every input is read before the work starts: a missing or malformed file fails at once.
+    let compared = read_compared(&args.compare)?;
     let specs = specs.unwrap_or_else(SolverSpec::defaults);
     let setup = load_setup(&args.scene)?;
     let problem = BenchProblem::prepare(
@@ -292,11 +293,11 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         write_frames(dir, &problem, &outcomes)?;
     }
     let mut plotted = records;
-    for file in &args.compare {
+    for (file, records) in compared {
         let label = file
             .file_stem()
             .map_or("compare".into(), |s| s.to_string_lossy().into_owned());
-        let theirs: Vec<Record> = read_csv(file)?
+        let theirs: Vec<Record> = records
             .into_iter()
             .filter(|r| r.scene == problem.name)
             .map(|r| Record {
@@ -323,6 +324,14 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         plot_pareto(path, &plotted, &problem.name)?;
     }
     Ok(())
+}
+
+/// The records of every `--compare` file, read and checked before any benchmark runs.
+fn read_compared(files: &[PathBuf]) -> Result<Vec<(&PathBuf, Vec<Record>)>, BenchError> {
+    files
+        .iter()
+        .map(|file| Ok((file, read_csv(file)?)))
+        .collect()
 }
 
 /// A failure to remove a leftover temporary file, as the output error it is.

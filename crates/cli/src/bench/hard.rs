@@ -71,8 +71,9 @@ pub const HARD_INTEGRATORS: &[&str] = &[
 /// The settings [`hard_case_settings`] changes from the library's defaults ([`Settings::default`]
 /// with the integrator chosen), printed with the matrix ([`crate::bench::format_hard_cases`]).
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
-     methods take the substeps their stability bound asks for (at most --max-substeps, default \
-     1000); newton-relaxed is newton with the opt-in relaxation (Relaxation::BUCKLING)";
+     methods take the substeps their stability bound asks for (at most 1000 per frame, above \
+     which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
+     (`hooke run --relaxation buckling`)";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -31,7 +31,7 @@
 //! # Ok::<(), hooke_cli::bench::BenchError>(())
 //! ```
 
-mod cli;
+pub(crate) mod cli;
 mod hard;
 mod measure;
 mod output;
@@ -77,6 +77,10 @@ pub enum BenchError {
     /// The scene could not be built or read.
     #[error("scene: {0}")]
     Scene(String),
+    /// The scene argument names a mesh file or a fluid scene, which the benchmark does not
+    /// measure: why, and the command that takes it.
+    #[error("{0}")]
+    NotASpringScene(String),
     /// The scene has a term the backward Euler objective of the benchmark does not model.
     #[error("{scene}: the benchmark cannot measure this scene: it has {what}")]
     Unsupported {

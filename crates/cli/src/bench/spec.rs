@@ -99,6 +99,35 @@ impl SolverKind {
         }
     }
 
+    /// How the kind is written in a spec and what it runs, in a few words, for `hooke bench
+    /// --help`: e.g. `pd:K,… (projective dynamics, K iterations)`.
+    pub fn usage(self) -> String {
+        let what = match self {
+            SolverKind::Pd => "projective dynamics",
+            SolverKind::PdTol => "projective dynamics to a step size of T m/s",
+            SolverKind::Newton => "Newton",
+            SolverKind::NewtonTol => "Newton to a relative gradient of T",
+            SolverKind::Cg => "linearised step, CG",
+            SolverKind::CgTol => "linearised step, CG to a relative residual of T",
+            SolverKind::Jacobi => "linearised step, block Jacobi",
+            SolverKind::JacobiTol => "linearised step, block Jacobi to a relative residual of T",
+            SolverKind::LinearizedCg => "linearised step, CG to 1e-8",
+            SolverKind::LinearizedJacobi => "linearised step, block Jacobi to 1e-8",
+            SolverKind::Lbfgs => "L-BFGS on PD's factor",
+            SolverKind::LbfgsTol => "L-BFGS to a relative gradient of T",
+            SolverKind::Chebyshev => "Chebyshev PD",
+            SolverKind::NewtonCg => "inexact Newton, PCG",
+            SolverKind::NewtonCgTol => "inexact Newton to a relative gradient of T",
+            SolverKind::NewtonRelaxed => "Newton with the buckling relaxation",
+            SolverKind::NewtonRelaxedTol => "relaxed Newton to a relative gradient of T",
+        };
+        match self.values() {
+            Values::Iterations => format!("{}:K,… ({what}, K iterations)", self.name()),
+            Values::Tolerances => format!("{}:T,… ({what})", self.name()),
+            Values::None => format!("{} ({what})", self.name()),
+        }
+    }
+
     /// What the values of this kind are: iteration counts, tolerances, or none.
     fn values(self) -> Values {
         match self {

@@ -37,8 +37,17 @@ pub enum StartState {
 /// models all of it (gravity is the only external force; no damping, contact or moving pins).
 ///
 /// # Errors
-/// [`BenchError::UnknownScene`], [`BenchError::Scene`], [`BenchError::Unsupported`].
+/// [`BenchError::UnknownScene`], [`BenchError::Scene`], [`BenchError::Unsupported`],
+/// [`BenchError::NotASpringScene`] (a mesh file or a fluid scene, with the command that takes it).
 pub fn load_setup(name: &str) -> Result<Setup<3>, BenchError> {
+    if let Some(hint) = crate::scene_arg::mesh_file_hint(name).or_else(|| {
+        crate::scene_arg::fluid_scene_hint(
+            name,
+            "`hooke bench SCENE` measures a spring scene's backward Euler step",
+        )
+    }) {
+        return Err(BenchError::NotASpringScene(hint));
+    }
     let path = Path::new(name);
     let setup = if path.extension().is_some_and(|e| e == "toml") || path.is_file() {
         load_scene(path)
@@ -54,7 +63,7 @@ pub fn load_setup(name: &str) -> Result<Setup<3>, BenchError> {
         AnySetup::Two(s) => {
             return Err(BenchError::Unsupported {
                 scene: s.name,
-                what: "a 2D scene (the benchmark measures 3D backward Euler steps)".into(),
+                what: "a 2D mesh (the benchmark measures 3D backward Euler steps)".into(),
             })
         }
     };

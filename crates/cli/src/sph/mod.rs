@@ -93,6 +93,9 @@ pub enum SphCliError {
     /// An output file could not be written.
     #[error(transparent)]
     Output(#[from] OutputError),
+    /// The test hook `HOOKE_TEST_HALT` has a value that is not a halting point.
+    #[error("invalid HOOKE_TEST_HALT (a test hook): {0}")]
+    TestHook(String),
 }
 
 impl SphCliError {
