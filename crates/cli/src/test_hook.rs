@@ -11,7 +11,7 @@
 //! and then waits for its standard input to close, so a test that pipes standard input reads the
 //! line and kills the process (a real kill). When standard input closes first (it is empty, or the
 //! test went away) the process exits at once with status [`EXIT_CODE`], running no destructors:
-//! what it leaves on disk is what a kill at that point leaves. tests/resume.rs uses both.
+//! what it leaves on disk is what a kill at that point leaves. tests/integration/resume.rs uses both.
 
 use std::fmt;
 use std::io::Read;

@@ -1,5 +1,5 @@
 //! Contact probe: cloth-12 swinging onto a sphere (centre (0.6, −0.35, 0.5) m, radius 0.15 m) and
-//! the ground (y = −0.5 m), the scene of tests/scenes.rs. Per frame: total energy minus the initial
+//! the ground (y = −0.5 m), the scene of tests/integration/scenes.rs. Per frame: total energy minus the initial
 //! one, kinetic, spring and gravitational energy (J), and how deep the unconstrained step (the same
 //! state stepped without contacts) goes into the sphere and the ground (m), with the number of
 //! vertices it leaves inside.

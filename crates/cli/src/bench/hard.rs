@@ -2,7 +2,7 @@
 //! stability).
 //!
 //! The cases are built on cloth-N (N = 40 by default) as docs/scenes.md §6 states them, with the
-//! same seeds and vertices as the project's `tests/hard_cases.rs`:
+//! same seeds and vertices as the project's `tests/integration/hard_cases.rs`:
 //! - `stiff h=1/30`, `stiff h=1/5`: cloth-N-stiff (k = 1e5 N/m) at both steps;
 //! - `stretched x3`: the initial state scaled by 3 in x and z; `crushed to 1%`: scaled by 0.01;
 //! - `k 1e1..1e7`: stiffness log-uniform over 6 orders of magnitude (SplitMix64, seed 2024);

@@ -588,7 +588,7 @@ fn the_relaxation_flag_opts_newton_into_the_buckling_preset() {
 fn the_pin_method_flag_and_key_choose_how_pins_are_held() {
     // cloth-10 (corners pinned) by Newton, 3 frames, with each pin method: both runs finish, the
     // summary records the method, and the runs agree to round-off (the two methods solve the same
-    // system for the free vertices; tests/pin_methods.rs bounds the position difference at 1e-10
+    // system for the free vertices; tests/integration/pin_methods.rs bounds the position difference at 1e-10
     // of the motion; here the summaries' total energies are compared).
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &[&str]| {
