@@ -132,14 +132,17 @@ pub(crate) fn log_axis(range: std::ops::Range<f64>) -> WithKeyPoints<LogCoord<f6
         .with_light_points(all)
 }
 
-/// A log axis' tick label: one significant digit when that is exact (`2e-3`), else two
-/// (`2.5e-3`).
+/// A log axis' tick label, to one significant digit when that is exact, else two: plain between
+/// 0.001 and 10⁵ (`0.002`, `2.5`, `40`), else in exponent form (`1e-5`, `2.5e6`).
 pub(crate) fn log_tick_label(v: f64) -> String {
     let one = format!("{v:.0e}");
-    if one
-        .parse::<f64>()
-        .is_ok_and(|w| (w - v).abs() <= 1e-9 * v.abs())
-    {
+    let rounded = match one.parse::<f64>() {
+        Ok(w) if (w - v).abs() <= 1e-9 * v.abs() => w,
+        _ => format!("{v:.1e}").parse::<f64>().unwrap_or(v),
+    };
+    if (1e-3..1e5).contains(&rounded.abs()) {
+        format!("{rounded}")
+    } else if one.parse::<f64>().is_ok_and(|w| w == rounded) {
         one
     } else {
         format!("{v:.1e}")
@@ -440,7 +443,10 @@ mod tests {
         assert_eq!(series.len(), 2);
         assert_eq!(series[0].labels, ["1 it", "10 it"]);
         assert_eq!(series[0].points.len(), series[0].labels.len());
-        assert_eq!(log_tick_label(2e-3), "2e-3");
-        assert_eq!(log_tick_label(2.5e-3), "2.5e-3");
+        assert_eq!(log_tick_label(2e-3), "0.002");
+        assert_eq!(log_tick_label(2.5e-3), "0.0025");
+        assert_eq!(log_tick_label(6.0), "6");
+        assert_eq!(log_tick_label(1e-5), "1e-5");
+        assert_eq!(log_tick_label(2.5e6), "2.5e6");
     }
 }
