@@ -123,19 +123,19 @@ pub(crate) fn bar_top(speeds: &[f64], speed_scale: f64) -> f64 {
 }
 
 /// The step and the values of ticks in `lo`..=`hi`: multiples of a step of 1, 2 or 5 × 10ᵏ, the
-/// smallest giving at most 7 intervals over the span. A span that is not positive and finite gets
-/// the single tick `lo`.
-pub(crate) fn ticks(lo: f64, hi: f64) -> (f64, Vec<f64>) {
+/// smallest giving at most `intervals` (at least 1) intervals over the span. A span that is not
+/// positive and finite gets the single tick `lo`.
+pub(crate) fn ticks(lo: f64, hi: f64, intervals: usize) -> (f64, Vec<f64>) {
+    let intervals = intervals.max(1) as f64;
     let span = hi - lo;
     if !(span.is_finite() && span > 0.0) {
         return (1.0, vec![lo]);
     }
-    let raw = span / 5.0;
-    let decade = 10f64.powf(raw.log10().floor());
+    let decade = 10f64.powf((span / intervals).log10().floor());
     let step = [1.0, 2.0, 5.0, 10.0]
         .iter()
         .map(|m| m * decade)
-        .find(|&s| span / s <= 7.0)
+        .find(|&s| span / s <= intervals + 1e-9)
         .unwrap_or(10.0 * decade);
     let first = (lo / step).ceil() as i64;
     let last = (hi / step + 1e-9).floor() as i64;
@@ -161,7 +161,7 @@ pub(crate) fn tick_label(value: f64, step: f64) -> String {
 pub(crate) fn speed_label(v: f64) -> String {
     if v == 0.0 {
         "0".into()
-    } else if (1e-3..1e4).contains(&v.abs()) {
+    } else if (1e-4..1e4).contains(&v.abs()) {
         let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
         format!("{v:.decimals$}")
     } else {
@@ -270,7 +270,9 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
     .map_err(err)?;
     let small = (FONT, 14).into_font().color(&TEXT);
     let dim = (FONT, 13).into_font().color(&TEXT_DIM);
-    let (x_step, x_ticks) = ticks(lo[0], hi[0]);
+    // A labelled tick every 60 pixels at most.
+    let intervals = |pixels: i32| (pixels / 60).clamp(1, 7) as usize;
+    let (x_step, x_ticks) = ticks(lo[0], hi[0], intervals(view_right - view_left));
     for &x in &x_ticks {
         let (px, _) = map(x, lo[1]);
         area.draw(&PathElement::new(
@@ -285,7 +287,8 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
                 .map_err(err)?;
         }
     }
-    let (y_step, y_ticks) = ticks(lo[1], hi[1]);
+    let (y_step, y_ticks) = ticks(lo[1], hi[1], intervals(view_bottom - view_top));
+    let mut widest = 0;
     for &y in &y_ticks {
         let (_, py) = map(lo[0], y);
         area.draw(&PathElement::new(
@@ -296,6 +299,7 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
         if text {
             let label = tick_label(y, y_step);
             let w = area.estimate_text_size(&label, &small).map_err(err)?.0 as i32;
+            widest = widest.max(w);
             area.draw(&Text::new(label, (axis_x - 8 - w, py - 8), small.clone()))
                 .map_err(err)?;
         }
@@ -311,7 +315,7 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
         ))
         .map_err(err)?;
     }
-    let (bar_step, bar_ticks) = ticks(0.0, bar);
+    let (bar_step, bar_ticks) = ticks(0.0, bar, 7);
     for &v in &bar_ticks {
         let y = (by1 - v / bar * bar_height).round() as i32;
         area.draw(&PathElement::new(
@@ -363,7 +367,10 @@ fn draw<const D: usize>(pixels: &mut [u8], input: &Input<D>) -> Result<(), Strin
         .map_err(err)?;
         area.draw(&Text::new(
             "y (m)",
-            (8, (view_top + view_bottom) / 2 - 8),
+            (
+                (axis_x - widest - 56).max(4),
+                (view_top + view_bottom) / 2 - 8,
+            ),
             small,
         ))
         .map_err(err)?;
@@ -411,27 +418,31 @@ mod tests {
 
     #[test]
     fn ticks_are_round_and_labelled_with_the_digits_they_need() {
-        let (step, t) = ticks(0.0, 0.626);
+        let (step, t) = ticks(0.0, 0.626, 7);
         assert_eq!(step, 0.1);
         assert_eq!(t.len(), 7);
         assert_eq!(tick_label(t[3], step), "0.3");
         assert_eq!(tick_label(0.0, step), "0");
-        let (step, t) = ticks(-0.075, 4.075);
+        let (step, t) = ticks(-0.075, 4.075, 7);
         assert_eq!(step, 1.0);
         assert_eq!(t, vec![0.0, 1.0, 2.0, 3.0, 4.0]);
         assert_eq!(tick_label(2.0, step), "2");
-        let (step, t) = ticks(0.0, 0.012);
+        let (step, t) = ticks(0.0, 0.012, 7);
         assert_eq!(step, 0.002);
         assert_eq!(tick_label(t[5], step), "0.010");
         for (lo, hi) in [(0.0, 1.0), (-3.0, 7.5), (0.0, 6.26e-3), (1e3, 5e3)] {
-            let (_, t) = ticks(lo, hi);
+            let (_, t) = ticks(lo, hi, 7);
             assert!((3..=10).contains(&t.len()), "{lo}..{hi}: {t:?}");
             assert!(
                 t.iter().all(|&v| v >= lo - 1e-12 && v <= hi + 1e-12),
                 "{t:?}"
             );
         }
+        // A narrow axis gets fewer ticks: a 1 m wide tank over 140 pixels, at most two intervals.
+        let (step, t) = ticks(-0.075, 1.075, 2);
+        assert_eq!((step, t), (1.0, vec![0.0, 1.0]));
         assert_eq!(speed_label(0.00423), "0.00423");
+        assert_eq!(speed_label(5.2214e-4), "0.000522");
         assert_eq!(speed_label(6.2641), "6.26");
         assert_eq!(speed_label(0.0), "0");
     }
