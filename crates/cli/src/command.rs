@@ -18,12 +18,11 @@ use crate::sim::{
 };
 use crate::test_hook::Halt;
 use clap::{Parser, Subcommand, ValueEnum};
-use nalgebra::SVector;
 
 use output::{
     progress_bar, remove_leftovers, render_preview, write_atomically, write_summary, write_timings,
-    OutputError, PreviewInput, PreviewObstacle, PreviewPositions, ResidualRecord, RunSummary,
-    RunTimings, SolverSettingsRecord, StepRecord, StepTiming,
+    OutputError, ResidualRecord, RunSummary, RunTimings, ScenePreview, SolverSettingsRecord,
+    StepRecord, StepTiming,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -362,8 +361,8 @@ fn run(args: &RunArgs) -> Result<(), CliError> {
         None => file_format,
     };
     match setup {
-        AnySetup::Two(s) => run_setup(s, args, format, resume, |p| PreviewPositions::Two(p)),
-        AnySetup::Three(s) => run_setup(s, args, format, resume, |p| PreviewPositions::Three(p)),
+        AnySetup::Two(s) => run_setup(s, args, format, resume),
+        AnySetup::Three(s) => run_setup(s, args, format, resume),
     }
 }
 
@@ -372,7 +371,6 @@ fn run_setup<const D: usize>(
     args: &RunArgs,
     format: FrameFormat,
     resume: Option<Checkpoint>,
-    preview_positions: impl for<'a> Fn(&'a [SVector<f64, D>]) -> PreviewPositions<'a>,
 ) -> Result<(), CliError> {
     if let Some(integrator) = parse_flag::<Integrator>(&args.integrator, "integrator")? {
         setup.settings.integrator = integrator;
@@ -723,47 +721,15 @@ fn run_setup<const D: usize>(
         return Err(e.into());
     }
     let state = sim.state();
-    let title = format!("{name}  t = {:.3} s  ({})", state.time, settings.integrator);
-    let bounds_2d = sim.scene().contacts().iter().find_map(|c| match c.shape {
-        crate::sim::Shape::Box { min, max } if D == 2 => Some(([min[0], min[1]], [max[0], max[1]])),
-        _ => None,
-    });
-    // Obstacles of 3D scenes (a 2D box is the view's bounds above).
-    let obstacles: Vec<PreviewObstacle> = if D == 3 {
-        sim.scene()
-            .contacts()
-            .iter()
-            .filter_map(|c| {
-                let v3 = |p: &nalgebra::SVector<f64, D>| nalgebra::Vector3::new(p[0], p[1], p[2]);
-                match c.shape {
-                    crate::sim::Shape::Plane { point, normal } => Some(PreviewObstacle::Plane {
-                        point: v3(&point),
-                        normal: v3(&normal),
-                    }),
-                    crate::sim::Shape::Sphere { center, radius } => Some(PreviewObstacle::Sphere {
-                        center: v3(&center),
-                        radius,
-                    }),
-                    _ => None,
-                }
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
-    render_preview(
-        &args.out.join("preview.png"),
-        &PreviewInput {
-            obstacles: &obstacles,
-            title: &title,
-            positions: preview_positions(&state.positions),
-            triangles: mesh.triangles(),
-            lines: &lines,
-            springs: mesh.springs().len(),
-            pinned: sim.scene().pinned(),
-            bounds_2d,
-        },
-    )?;
+    let preview = ScenePreview::of(
+        &name,
+        sim.scene(),
+        &state.positions,
+        steps,
+        state.time,
+        settings.integrator,
+    );
+    render_preview(&args.out.join("preview.png"), &preview.input())?;
     let first = summary.steps.first().map_or(0.0, |r| r.total_energy);
     let last = summary.steps.last().map_or(0.0, |r| r.total_energy);
     eprintln!(

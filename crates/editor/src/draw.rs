@@ -1,6 +1,10 @@
 //! Drawing an editor into a pixel buffer with tiny-skia: the walls, springs coloured by strain,
 //! particles (pinned ones red with a ring), the pull's target, and a text overlay in DejaVu Sans
 //! (rasterised by ab_glyph; the font ships in `assets/fonts`, so nothing needs system fonts).
+//!
+//! The overlay sits on a translucent band along the top or the bottom edge, whichever the
+//! particles leave free (the top when both are, the one with fewer particles when neither is),
+//! so that it does not hide the structure.
 
 use std::path::Path;
 use std::time::Duration;
@@ -111,7 +115,9 @@ impl Renderer {
     }
 
     /// Draw `editor`. `frame_time` is the wall time of the last frame as the front end measured
-    /// it (`None` in headless replays, whose frames must not depend on the machine).
+    /// it (`None` in headless replays, whose frames must not depend on the machine). The overlay
+    /// names the frame by its 0-based index, as a replay names its file (`frame_0000.png` is the
+    /// frame after the first advance), and gives the simulated time a frame covers.
     pub fn render(&mut self, editor: &Editor, frame_time: Option<Duration>) -> &Pixmap {
         let size = self.pixmap.width() as f32;
         let scale = size / 512.0;
@@ -236,22 +242,49 @@ impl Renderer {
                     .stroke_path(&path, &paint, &ring, Transform::identity(), None);
             }
         }
-        self.overlay(editor, frame_time);
+        self.overlay(editor, frame_time, radius);
         &self.pixmap
     }
 
-    fn overlay(&mut self, editor: &Editor, frame_time: Option<Duration>) {
+    fn overlay(&mut self, editor: &Editor, frame_time: Option<Duration>, radius: f32) {
         let size = self.pixmap.width() as f32;
         let px = 12.0 * size / 512.0;
         let margin = 6.0 * size / 512.0;
+        let line_height = px * 1.3;
+        // Rare (the editor pauses on it): wrapping may allocate.
+        let failure = editor.failure().map(|f| {
+            wrap(
+                &self.font,
+                px,
+                &format!("FAILED, paused (space retries): {f}"),
+                size - 2.0 * margin,
+            )
+        });
+        let lines = OVERLAY_LINES
+            + usize::from(editor.notice().is_some())
+            + failure
+                .as_ref()
+                .map_or(usize::from(editor.is_paused()), Vec::len);
+        let band = 2.0 * margin + lines as f32 * line_height;
+        let top = overlay_at_top(editor.positions(), size, band + radius);
+        let band_top = if top { 0.0 } else { size - band };
+        if let Some(rect) = tiny_skia::Rect::from_xywh(0.0, band_top, size, band) {
+            let paint = Paint {
+                shader: tiny_skia::Shader::SolidColor(Color::from_rgba8(0xF4, 0xF4, 0xF4, 0xC8)),
+                ..Paint::default()
+            };
+            self.pixmap
+                .fill_rect(rect, &paint, Transform::identity(), None);
+        }
         let mut text = Text {
             pixmap: &mut self.pixmap,
             font: &self.font,
             cache: &mut self.text_cache,
             px,
             x: margin,
-            line_height: px * 1.3,
-            first_baseline: margin + px,
+            line_height,
+            // The descent of the last line stays inside the band.
+            first_baseline: band_top + margin + px * 0.95,
             slot: 0,
         };
         const BLACK: u32 = 0x000000;
@@ -264,41 +297,44 @@ impl Renderer {
             format_args!("C: clear; Space: pause; I: integrator; [ ]: substeps; S: save"),
             BLACK,
         );
-        text.line(
-            format_args!(
-                "integrator: {} ({} substeps of {:.2} ms)",
-                editor.integrator().name(),
-                editor.substeps(),
-                editor.substep() * 1e3
-            ),
-            BLACK,
+        let (integrator, substeps, substep) = (
+            editor.integrator().name(),
+            editor.substeps(),
+            editor.substep() * 1e3,
         );
         let stats = editor.stats();
         match (stats.residual, editor.library_integrator().is_explicit()) {
-            (_, true) => text.line(format_args!("solver: none (explicit)"), BLACK),
+            (_, true) => text.line(
+                format_args!("{integrator}, {substeps} substeps of {substep:.2} ms; explicit"),
+                BLACK,
+            ),
             (Some(r), false) if stats.clamped_substeps > 0 => text.line(
                 format_args!(
-                    "solver: {} iterations this frame, last residual {r:.2e}, clamped Hessian in {}",
+                    "{integrator}, {substeps} substeps of {substep:.2} ms; {} iterations, \
+                     residual {r:.1e}, clamped Hessian in {}",
                     stats.iterations, stats.clamped_substeps
                 ),
                 BLACK,
             ),
             (Some(r), false) => text.line(
                 format_args!(
-                    "solver: {} iterations this frame, last residual {r:.2e}",
+                    "{integrator}, {substeps} substeps of {substep:.2} ms; {} iterations, \
+                     residual {r:.1e}",
                     stats.iterations
                 ),
                 BLACK,
             ),
-            (None, false) => text.line(format_args!("solver: -"), BLACK),
+            (None, false) => text.line(
+                format_args!("{integrator}, {substeps} substeps of {substep:.2} ms; solver: -"),
+                BLACK,
+            ),
         }
-        text.line(format_args!("energy: {:.4} J", editor.energy()), BLACK);
         text.line(
-            format_args!("Y: Young's modulus {:.1} N (k = Y/l)", editor.young()),
-            BLACK,
-        );
-        text.line(
-            format_args!("D: drag damping {:.2} /s", editor.drag()),
+            format_args!(
+                "Y: Young's modulus {:.1} N (k = Y/l); D: drag {:.2} /s",
+                editor.young(),
+                editor.drag()
+            ),
             BLACK,
         );
         let dashpot_note = if editor.integrator().models_dashpot() {
@@ -308,27 +344,30 @@ impl Renderer {
         };
         text.line(
             format_args!(
-                "X: dashpot damping {:.2} N s/m{dashpot_note}",
-                editor.dashpot()
+                "X: dashpot {:.2} N s/m{dashpot_note}; energy {:.4} J",
+                editor.dashpot(),
+                editor.energy()
             ),
             BLACK,
         );
-        let (particles, springs, frames) = (
-            editor.particle_count(),
-            editor.springs().len(),
-            editor.frames(),
-        );
+        let (particles, springs) = (editor.particle_count(), editor.springs().len());
+        // The index of the frame shown: a replay's frame_NNNN.png is drawn after NNNN + 1 advances.
+        let frame = editor.frames().saturating_sub(1);
+        // The simulated time a frame covers; the window adds the wall time it took.
+        let simulated = editor.params().frame_time * 1e3;
         match frame_time {
             Some(t) => text.line(
                 format_args!(
-                    "{particles} particles, {springs} springs; frame {frames}; frame time {:.1} ms",
+                    "{particles} particles, {springs} springs; frame {frame}; frame time \
+                     {simulated:.1} ms (took {:.1} ms)",
                     t.as_secs_f64() * 1e3
                 ),
                 BLACK,
             ),
             None => text.line(
                 format_args!(
-                    "{particles} particles, {springs} springs; frame {frames}; frame time -"
+                    "{particles} particles, {springs} springs; frame {frame}; frame time \
+                     {simulated:.1} ms"
                 ),
                 BLACK,
             ),
@@ -336,10 +375,8 @@ impl Renderer {
         if let Some(notice) = editor.notice() {
             text.line(format_args!("{notice}"), 0x804000);
         }
-        if let Some(failure) = editor.failure() {
-            // Rare (the editor pauses on it): wrapping may allocate.
-            let message = format!("FAILED, paused (space retries): {failure}");
-            for piece in wrap(text.font, px, &message, size - 2.0 * margin) {
+        if let Some(failure) = failure {
+            for piece in failure {
                 text.line(format_args!("{piece}"), RED);
             }
         } else if editor.is_paused() {
@@ -359,6 +396,23 @@ impl Renderer {
         })?;
         crate::write_atomically(path, &bytes)
     }
+}
+
+/// Lines the overlay always has: two of help, the integrator and solver, the parameters (two), the
+/// counts and frame.
+const OVERLAY_LINES: usize = 6;
+
+/// Whether the overlay's band of `band` pixels (particle radius included) goes along the top edge
+/// of a `size`-pixel frame: when no particle is in the top band, or when fewer are there than in
+/// the bottom band.
+fn overlay_at_top(positions: &[crate::Vec2], size: f32, band: f32) -> bool {
+    let limit = f64::from(band / size);
+    let (mut top, mut bottom) = (0usize, 0usize);
+    for p in positions {
+        top += usize::from(p.y >= 1.0 - limit);
+        bottom += usize::from(p.y <= limit);
+    }
+    top == 0 || top <= bottom
 }
 
 /// Split `text` into lines no wider than `width` pixels, at spaces.
@@ -490,6 +544,8 @@ fn mix(pixel: &mut PremultipliedColorU8, [r, g, b]: [u8; 3], coverage: u8) {
 #[derive(Default)]
 struct CachedLine {
     text: String,
+    /// The baseline the coverage was rasterised at (pixels): the overlay moves between edges.
+    baseline: f32,
     coverage: Vec<(u32, u8)>,
 }
 
@@ -522,8 +578,9 @@ impl Text<'_> {
         // Append, then compare with what the slot held: no allocation once the capacity is there.
         write!(cached.text, "{text}").expect("formatting into a String does not fail");
         let (old, new) = cached.text.split_at(previous_length);
-        if old != new {
+        if old != new || cached.baseline != baseline {
             cached.text.drain(..previous_length);
+            cached.baseline = baseline;
             let (w, h) = (self.pixmap.width(), self.pixmap.height());
             rasterise(
                 self.font,
@@ -617,5 +674,43 @@ mod tests {
         assert!(stretched.red() > 200 && stretched.blue() < 50);
         let compressed = bucket_colour(0).to_color_u8();
         assert!(compressed.blue() > 200 && compressed.red() < 50);
+    }
+
+    #[test]
+    fn the_overlay_goes_to_the_edge_the_particles_leave_free() {
+        let at = |points: &[(f64, f64)]| {
+            let positions: Vec<crate::Vec2> = points
+                .iter()
+                .map(|&(x, y)| crate::Vec2::new(x, y))
+                .collect();
+            // A band of 100 px of a 512 px frame: y above 0.805 is under a top band.
+            overlay_at_top(&positions, 512.0, 100.0)
+        };
+        assert!(at(&[]));
+        // Fallen to the floor: the top is free.
+        assert!(at(&[(0.3, 0.05), (0.5, 0.1)]));
+        // Hanging from the top: the bottom is free.
+        assert!(!at(&[(0.3, 0.95), (0.5, 0.5)]));
+        // Both edges used: the one with fewer particles.
+        assert!(!at(&[(0.3, 0.95), (0.4, 0.9), (0.5, 0.05)]));
+        assert!(at(&[(0.3, 0.95), (0.4, 0.05), (0.5, 0.1)]));
+    }
+
+    #[test]
+    fn the_overlay_band_is_drawn_where_the_particles_are_not() {
+        // The seed's three particles sit low (y 0.3 to 0.4): the band is along the top, and the
+        // frame's bottom rows keep the background.
+        let editor = Editor::seed(crate::EditorParams::default()).unwrap();
+        let mut renderer = Renderer::new(512).unwrap();
+        let frame = renderer.render(&editor, None);
+        let pixel = |x: u32, y: u32| frame.pixel(x, y).unwrap();
+        let background = rgb(0xDDDDDD).to_color_u8().premultiply();
+        // Right of the text, inside the walls: the band's translucent white over the background.
+        assert!(
+            pixel(505, 20).red() > background.red(),
+            "{:?}",
+            pixel(505, 20)
+        );
+        assert_eq!(pixel(505, 400), background);
     }
 }

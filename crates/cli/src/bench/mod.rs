@@ -55,6 +55,7 @@ pub use output::{
     format_hard_cases, format_sweep_table, format_table, frame_file_name, read_csv, write_csv,
     write_frames, write_json, COLUMNS,
 };
+pub(crate) use plot::{fitted_log_range, log_axis, log_tick_label};
 pub use plot::{plot_fronts, plot_pareto, plot_sweep};
 pub use run::{run_spec, Outcome, Record, TimingOptions};
 pub use spec::{Setting, SolverKind, SolverSpec};

@@ -1,10 +1,13 @@
 //! PNG plots on log axes, drawn with plotters and the font shipped in `assets/fonts` (no system
 //! font needed), written to a temporary file beside the target and renamed onto it.
+//!
+//! The axes are fitted to the data ([`fitted_log_range`]), and each point of a solver's curve is
+//! labelled with its setting (`10 it`, `tol 1e-6`), so that the curve reads without the table.
 
 use std::path::Path;
 use std::sync::OnceLock;
 
-use plotters::coord::combinators::IntoLogRange;
+use plotters::coord::combinators::{BindKeyPoints, IntoLogRange, LogCoord, WithKeyPoints};
 use plotters::prelude::*;
 use plotters::style::register_font;
 
@@ -39,47 +42,110 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> BenchError {
 }
 
 /// A named series of (x, y) points, drawn as a line through the points in their order (a solver's
-/// settings from loose to strict, or sizes from small to large).
+/// settings from loose to strict, or sizes from small to large), each point with its label
+/// (empty: none).
 struct Series {
     name: String,
     points: Vec<(f64, f64)>,
+    labels: Vec<String>,
 }
 
-/// Group `(name, x, y)` triples by name (first-seen order), keeping positive finite values only.
-fn group(items: impl IntoIterator<Item = (String, Option<f64>, Option<f64>)>) -> Vec<Series> {
+/// Group `(name, x, y, label)` by name (first-seen order), keeping positive finite values only.
+fn group(
+    items: impl IntoIterator<Item = (String, Option<f64>, Option<f64>, String)>,
+) -> Vec<Series> {
     let mut series: Vec<Series> = Vec::new();
-    for (name, x, y) in items {
+    for (name, x, y, label) in items {
         let (Some(x), Some(y)) = (x, y) else { continue };
         if !(x > 0.0 && y > 0.0 && x.is_finite() && y.is_finite()) {
             continue;
         }
         match series.iter_mut().find(|s| s.name == name) {
-            Some(s) => s.points.push((x, y)),
+            Some(s) => {
+                s.points.push((x, y));
+                s.labels.push(label);
+            }
             None => series.push(Series {
                 name,
                 points: vec![(x, y)],
+                labels: vec![label],
             }),
         }
     }
     series
 }
 
-/// A log range around the values, widened to whole-ish decades.
-fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+/// A point's label from a record's `setting` (`10`, `1e-6`, `default`): `10 it`, `tol 1e-6`,
+/// `default`.
+fn setting_label(setting: &str) -> String {
+    if setting.parse::<usize>().is_ok() {
+        format!("{setting} it")
+    } else if setting.parse::<f64>().is_ok() {
+        format!("tol {setting}")
+    } else {
+        setting.to_string()
+    }
+}
+
+/// The margin of a fitted log axis beyond its data, as a factor on each side: room for the
+/// point markers and labels, not a decade of empty axis.
+const LOG_MARGIN: f64 = 1.25;
+
+/// A log axis range fitted to the positive finite `values`: from their smallest to their largest,
+/// widened by [`LOG_MARGIN`] (and by a tenth of the span in log terms for wide data) on each
+/// side. Without such values, 1e-3..1.
+pub(crate) fn fitted_log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-    for v in values {
+    for v in values.filter(|v| v.is_finite() && *v > 0.0) {
         lo = lo.min(v);
         hi = hi.max(v);
     }
     if !(lo.is_finite() && hi > 0.0) {
         return 1e-3..1.0;
     }
-    let lo = 10f64.powf(lo.log10().floor());
-    let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
-    if hi > lo {
-        lo..hi
+    let margin = LOG_MARGIN.max((hi / lo).powf(0.05));
+    lo / margin..hi * margin
+}
+
+/// A log axis over `range` whose labelled ticks are 1, 2 and 5 × 10ᵏ (every digit × 10ᵏ when
+/// that gives fewer than three), the light grid every digit × 10ᵏ: a fitted axis narrower than a
+/// decade still reads.
+pub(crate) fn log_axis(range: std::ops::Range<f64>) -> WithKeyPoints<LogCoord<f64>> {
+    let within = |digits: &[f64]| -> Vec<f64> {
+        let (first, last) = (
+            range.start.log10().floor() as i32,
+            range.end.log10().ceil() as i32,
+        );
+        (first..=last)
+            .flat_map(|k| digits.iter().map(move |d| d * 10f64.powi(k)))
+            .filter(|v| range.contains(v))
+            .collect()
+    };
+    let all: Vec<f64> = within(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    let mut bold = within(&[1.0, 2.0, 5.0]);
+    if bold.len() < 3 {
+        bold = all.clone();
+    }
+    range
+        .log_scale()
+        .with_key_points(bold)
+        .with_light_points(all)
+}
+
+/// A log axis' tick label, to one significant digit when that is exact, else two: plain between
+/// 0.001 and 10⁵ (`0.002`, `2.5`, `40`), else in exponent form (`1e-5`, `2.5e6`).
+pub(crate) fn log_tick_label(v: f64) -> String {
+    let one = format!("{v:.0e}");
+    let rounded = match one.parse::<f64>() {
+        Ok(w) if (w - v).abs() <= 1e-9 * v.abs() => w,
+        _ => format!("{v:.1e}").parse::<f64>().unwrap_or(v),
+    };
+    if (1e-3..1e5).contains(&rounded.abs()) {
+        format!("{rounded}")
+    } else if one.parse::<f64>().is_ok_and(|w| w == rounded) {
+        one
     } else {
-        lo..lo * 10.0
+        format!("{v:.1e}")
     }
 }
 
@@ -92,8 +158,8 @@ fn chart(
     series: &[Series],
 ) -> Result<(), String> {
     let text = font_ready();
-    let x = log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
-    let y = log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let x = fitted_log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let y = fitted_log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
     let mut builder = ChartBuilder::on(area);
     builder
         .margin(12)
@@ -103,7 +169,7 @@ fn chart(
         builder.caption(caption, (FONT, 20));
     }
     let mut c = builder
-        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .build_cartesian_2d(log_axis(x), log_axis(y))
         .map_err(|e| e.to_string())?;
     let mut mesh = c.configure_mesh();
     if text {
@@ -111,12 +177,13 @@ fn chart(
             .y_desc(y_label)
             .label_style((FONT, 13))
             .axis_desc_style((FONT, 15))
-            .x_label_formatter(&|v| format!("{v:.0e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"));
+            .x_label_formatter(&|v| log_tick_label(*v))
+            .y_label_formatter(&|v| log_tick_label(*v));
     } else {
         mesh.disable_x_mesh().disable_y_mesh();
     }
     mesh.draw().map_err(|e| e.to_string())?;
+    let label_font = (FONT, 12).into_font();
     for (k, s) in series.iter().enumerate() {
         let color = PALETTE[k % PALETTE.len()];
         let line = c
@@ -132,6 +199,20 @@ fn chart(
         }
         c.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, color.filled())))
             .map_err(|e| e.to_string())?;
+        if text {
+            // Each point's setting, just right of and above its marker.
+            let style = label_font.clone().color(&color);
+            c.draw_series(
+                s.points
+                    .iter()
+                    .zip(&s.labels)
+                    .filter(|(_, l)| !l.is_empty())
+                    .map(|(&p, l)| {
+                        EmptyElement::at(p) + Text::new(l.clone(), (6, -16), style.clone())
+                    }),
+            )
+            .map_err(|e| e.to_string())?;
+        }
     }
     if text && !series.is_empty() {
         c.configure_series_labels()
@@ -173,11 +254,14 @@ fn write_png(
 /// [`BenchError::Output`] naming the file.
 pub fn plot_pareto(path: &Path, records: &[Record], title: &str) -> Result<(), BenchError> {
     let by = |f: fn(&Record) -> Option<f64>| {
-        group(
-            records
-                .iter()
-                .map(|r| (r.solver.clone(), r.wall_time_s, f(r))),
-        )
+        group(records.iter().map(|r| {
+            (
+                r.solver.clone(),
+                r.wall_time_s,
+                f(r),
+                setting_label(&r.setting),
+            )
+        }))
     };
     let objective = by(|r| r.objective_error);
     let position = by(|r| r.position_error);
@@ -211,6 +295,7 @@ pub fn plot_sweep(path: &Path, rows: &[SweepRow], title: &str) -> Result<(), Ben
             format!("{}:{}", r.solver, r.setting),
             Some(row.vertices as f64),
             r.wall_time_s,
+            String::new(),
         )
     }));
     let peak = rows.iter().filter_map(|r| r.peak_memory_bytes).max();
@@ -309,4 +394,59 @@ pub fn plot_fronts(
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_axes_fit_their_data() {
+        // Times of an SPH sweep: 2.1 ms to 48 ms. The axis holds every value, with at most the
+        // margin beyond the extremes (the decade-rounded axis ran 1 ms to 100 ms).
+        let values = [2.1e-3, 7.7e-3, 4.8e-2, f64::NAN, -1.0, 0.0];
+        let r = fitted_log_range(values.iter().copied());
+        assert!(r.start <= 2.1e-3 && r.end >= 4.8e-2, "{r:?}");
+        let margin = LOG_MARGIN.max((4.8e-2f64 / 2.1e-3).powf(0.05));
+        assert!((2.1e-3 / r.start - margin).abs() < 1e-12 * margin, "{r:?}");
+        assert!((r.end / 4.8e-2 - margin).abs() < 1e-12 * margin, "{r:?}");
+        assert!(margin < 1.3);
+        // One value: a usable range around it; none: a default.
+        let one = fitted_log_range([5.0].into_iter());
+        assert!(one.start < 5.0 && one.end > 5.0);
+        assert_eq!(fitted_log_range(std::iter::empty()), 1e-3..1.0);
+        // A fitted axis narrower than a decade still has at least three labelled ticks.
+        let narrow = fitted_log_range([5.77e-2, 9.86e-2].into_iter());
+        let axis = log_axis(narrow.clone());
+        assert!(axis.bold_points().len() >= 3, "{:?}", axis.bold_points());
+        assert!(axis.bold_points().iter().all(|v| narrow.contains(v)));
+        let wide = log_axis(fitted_log_range([1e-4, 1e-1].into_iter()));
+        assert!(wide.bold_points().contains(&1e-3) && wide.bold_points().contains(&2e-3));
+    }
+
+    #[test]
+    fn points_are_labelled_with_their_setting() {
+        assert_eq!(setting_label("10"), "10 it");
+        assert_eq!(setting_label("1e-6"), "tol 1e-6");
+        assert_eq!(setting_label("default"), "default");
+        let series = group([
+            ("pd".to_string(), Some(1e-3), Some(0.5), setting_label("1")),
+            ("pd".to_string(), Some(2e-3), Some(0.1), setting_label("10")),
+            ("pd".to_string(), None, Some(0.1), setting_label("100")),
+            (
+                "newton".to_string(),
+                Some(5e-3),
+                Some(1e-6),
+                setting_label("1"),
+            ),
+        ]);
+        assert_eq!(series.len(), 2);
+        assert_eq!(series[0].labels, ["1 it", "10 it"]);
+        assert_eq!(series[0].points.len(), series[0].labels.len());
+        assert_eq!(log_tick_label(2e-3), "0.002");
+        assert_eq!(log_tick_label(2.5e-3), "0.0025");
+        assert_eq!(log_tick_label(6.0), "6");
+        assert_eq!(log_tick_label(1e-5), "1e-5");
+        assert_eq!(log_tick_label(2.5e6), "2.5e6");
+    }
 }

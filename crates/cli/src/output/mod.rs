@@ -15,7 +15,9 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-pub use preview::{render_preview, PreviewInput, PreviewObstacle, PreviewPositions};
+pub use preview::{
+    detail_line, render_preview, PreviewInput, PreviewObstacle, PreviewPositions, ScenePreview,
+};
 pub use progress::progress_bar;
 pub use summary::{
     write_summary, RateRecord, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,

@@ -4,9 +4,14 @@
 //! elevation 25°, y up in the picture), fitted into the image with their aspect ratio kept.
 //! Triangles are filled back to front (painter's algorithm) with two-sided flat Lambert shading:
 //! the side whose normal (by the triangle's winding) faces the camera is blue, the other side
-//! orange, so that folds read clearly. Without triangles the springs are drawn as lines, darker
-//! when nearer. 2D scenes show their box, springs as lines and particles as discs, y up.
-//! Pinned vertices are red in both.
+//! orange, so that folds read clearly; a legend under the caption says which is which. Without
+//! triangles the springs are drawn as lines, darker when nearer. Obstacles are drawn behind the
+//! mesh: a ground plane as a gridded patch, a sphere as a shaded disc, a box (a container) as its
+//! far walls, with its near edges drawn over the mesh. 2D scenes show their box, springs as lines
+//! and particles as discs, y up. Pinned vertices are red in both.
+//!
+//! [`ScenePreview`] builds the picture's input, caption included, from a scene and a frame, so
+//! that the counts the caption gives are the scene's.
 //!
 //! The picture is drawn at twice its size and averaged down (anti-aliasing). Text uses the
 //! DejaVu Sans font embedded in the program, so no system font is needed. Non-finite positions
@@ -15,12 +20,13 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
-use nalgebra::{Vector2, Vector3};
+use nalgebra::{SVector, Vector2, Vector3};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::register_font;
 
 use super::{write_png, OutputError};
+use crate::sim::{Integrator, Scene, Shape};
 
 /// Default width of the preview, in pixels.
 pub const PREVIEW_WIDTH: u32 = 800;
@@ -59,6 +65,10 @@ const BOX_EDGE: RGBColor = RGBColor(60, 64, 72);
 const GROUND: RGBColor = RGBColor(214, 218, 210);
 const GROUND_LINE: RGBColor = RGBColor(176, 182, 170);
 const SPHERE: [f64; 3] = [150.0, 154.0, 162.0];
+/// Fill of a box obstacle's far walls (seen from inside).
+const BOX_WALL: RGBColor = RGBColor(226, 230, 236);
+/// Edges of a box obstacle.
+const BOX_WIRE: RGBColor = RGBColor(110, 116, 128);
 
 /// An obstacle of a 3D contact scene, drawn behind the mesh (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,6 +87,14 @@ pub enum PreviewObstacle {
         center: Vector3<f64>,
         /// Radius, m.
         radius: f64,
+    },
+    /// An axis-aligned box that keeps the mesh inside (a container): its three far walls are
+    /// filled behind the mesh, its three near edges drawn over it.
+    Box {
+        /// Lower corner, m.
+        min: Vector3<f64>,
+        /// Upper corner, m.
+        max: Vector3<f64>,
     },
 }
 
@@ -121,6 +139,123 @@ pub struct PreviewInput<'a> {
     /// Obstacles of a 3D scene, drawn behind the mesh; the view is fitted to them too. Ignored
     /// in 2D.
     pub obstacles: &'a [PreviewObstacle],
+}
+
+/// A mass-spring scene's frame, ready to draw: what [`PreviewInput`] borrows, taken from the scene
+/// itself (its mesh, pins and obstacles) so that the picture and its caption cannot disagree with
+/// it.
+#[derive(Debug, Clone)]
+pub struct ScenePreview<'a> {
+    title: String,
+    positions: OwnedPositions,
+    triangles: &'a [[u32; 3]],
+    lines: Vec<[u32; 2]>,
+    springs: usize,
+    pinned: &'a [u32],
+    bounds_2d: Option<([f64; 2], [f64; 2])>,
+    obstacles: Vec<PreviewObstacle>,
+}
+
+/// Positions copied into the preview's vector types.
+#[derive(Debug, Clone)]
+enum OwnedPositions {
+    Two(Vec<Vector2<f64>>),
+    Three(Vec<Vector3<f64>>),
+}
+
+impl<'a> ScenePreview<'a> {
+    /// Frame `frame` (its file's number) of `scene`, named `name`, at `time` (s), stepped by
+    /// `integrator`, with vertex positions `positions` (m, one per mesh vertex).
+    ///
+    /// The caption's title names the scene, frame, time and integrator; its second line counts
+    /// the mesh's vertices, triangles and springs (all springs, drawn or not: a cloth is drawn as
+    /// its triangles) and the pinned vertices. A 3D scene's obstacles are drawn; a 2D scene's box
+    /// is the view.
+    pub fn of<const D: usize>(
+        name: &str,
+        scene: &'a Scene<D>,
+        positions: &[SVector<f64, D>],
+        frame: usize,
+        time: f64,
+        integrator: Integrator,
+    ) -> Self {
+        let mesh = scene.mesh();
+        let lines = if mesh.triangles().is_empty() {
+            mesh.springs().iter().map(|s| [s.i, s.j]).collect()
+        } else {
+            Vec::new()
+        };
+        let v3 = |p: &SVector<f64, D>| Vector3::new(p[0], p[1], p[2]);
+        let (positions, bounds_2d, obstacles) = if D == 3 {
+            let obstacles = scene
+                .contacts()
+                .iter()
+                .filter_map(|c| match c.shape {
+                    Shape::Plane { point, normal } => Some(PreviewObstacle::Plane {
+                        point: v3(&point),
+                        normal: v3(&normal),
+                    }),
+                    Shape::Sphere { center, radius } => Some(PreviewObstacle::Sphere {
+                        center: v3(&center),
+                        radius,
+                    }),
+                    Shape::Box { min, max } => Some(PreviewObstacle::Box {
+                        min: v3(&min),
+                        max: v3(&max),
+                    }),
+                    // A shape added to the library later is left out until it is drawn.
+                    _ => None,
+                })
+                .collect();
+            (
+                OwnedPositions::Three(positions.iter().map(v3).collect()),
+                None,
+                obstacles,
+            )
+        } else {
+            let bounds = scene.contacts().iter().find_map(|c| match c.shape {
+                Shape::Box { min, max } => Some(([min[0], min[1]], [max[0], max[1]])),
+                _ => None,
+            });
+            (
+                OwnedPositions::Two(positions.iter().map(|p| Vector2::new(p[0], p[1])).collect()),
+                bounds,
+                Vec::new(),
+            )
+        };
+        ScenePreview {
+            title: format!("{name} · frame {frame} · t = {time:.3} s · {integrator}"),
+            positions,
+            triangles: mesh.triangles(),
+            lines,
+            springs: mesh.springs().len(),
+            pinned: scene.pinned(),
+            bounds_2d,
+            obstacles,
+        }
+    }
+
+    /// The input to [`render_preview`].
+    pub fn input(&self) -> PreviewInput<'_> {
+        PreviewInput {
+            title: &self.title,
+            positions: match &self.positions {
+                OwnedPositions::Two(p) => PreviewPositions::Two(p),
+                OwnedPositions::Three(p) => PreviewPositions::Three(p),
+            },
+            triangles: self.triangles,
+            lines: &self.lines,
+            springs: self.springs,
+            pinned: self.pinned,
+            bounds_2d: self.bounds_2d,
+            obstacles: &self.obstacles,
+        }
+    }
+
+    /// The caption's two lines: the title and the counts ([`detail_line`]).
+    pub fn caption(&self) -> [String; 2] {
+        [self.title.clone(), detail_line(&self.input())]
+    }
 }
 
 /// The four corners of the patch of `plane` (point, unit normal) drawn under `positions`: their
@@ -197,7 +332,7 @@ fn rasterize(input: &PreviewInput, width: u32, height: u32) -> Result<Vec<u8>, S
     {
         let area = BitMapBackend::with_buffer(&mut big, (big_w, big_h)).into_drawing_area();
         area.fill(&BACKGROUND).map_err(|e| e.to_string())?;
-        let layout = Layout::new(width, height);
+        let layout = Layout::new(width, height, shows_sides(input));
         let caption = match input.positions {
             PreviewPositions::Three(p) => draw_3d(&area, &layout, input, p)?,
             PreviewPositions::Two(p) => draw_2d(&area, &layout, input, p)?,
@@ -243,16 +378,22 @@ struct Layout {
     plot: (f64, f64, f64, f64),
 }
 
+/// Whether the picture has shaded surfaces, whose two sides the legend names.
+fn shows_sides(input: &PreviewInput) -> bool {
+    matches!(input.positions, PreviewPositions::Three(_)) && !input.triangles.is_empty()
+}
+
 impl Layout {
-    /// The layout of a `width` × `height` output image.
-    fn new(width: u32, height: u32) -> Self {
+    /// The layout of a `width` × `height` output image; `legend`: room for the line naming the
+    /// surface's two sides under the caption.
+    fn new(width: u32, height: u32, legend: bool) -> Self {
         let (w, h) = (f64::from(width * SS), f64::from(height * SS));
         let unit = (f64::from(width) / 800.0)
             .min(f64::from(height) / 600.0)
             .clamp(0.25, 4.0)
             * f64::from(SS);
         let margin = 24.0 * unit;
-        let top = 72.0 * unit;
+        let top = if legend { 90.0 } else { 72.0 } * unit;
         let left = margin.min(w / 2.0 - 0.5);
         let right = (w - margin).max(left + 1.0);
         let top = top.min(h / 2.0 - 0.5).max(0.0);
@@ -470,8 +611,14 @@ fn draw_3d(
     // (centre, radius).
     let mut patches = Vec::new();
     let mut discs = Vec::new();
+    let mut boxes = Vec::new();
     for obstacle in input.obstacles {
         match *obstacle {
+            PreviewObstacle::Box { min, max } => {
+                if let Some(b) = BoxView::new(&cam, &min, &max) {
+                    boxes.push(b);
+                }
+            }
             PreviewObstacle::Plane { point, normal } => {
                 let corners = plane_patch(&point, &normal, positions).map(|c| cam.project(&c));
                 if let [Some(a), Some(b), Some(c), Some(d)] = corners {
@@ -492,7 +639,8 @@ fn draw_3d(
             discs
                 .iter()
                 .flat_map(|&((u, v, _), r)| [(u - r, v - r), (u + r, v + r)]),
-        );
+        )
+        .chain(boxes.iter().flat_map(|b| b.corners.map(|(u, v, _)| (u, v))));
     let (min, max) = bounding_box(
         projected
             .iter()
@@ -525,6 +673,10 @@ fn draw_3d(
                 );
             }
         }
+    }
+    let wire = (layout.unit * 1.2).round().max(1.0) as u32;
+    for b in &boxes {
+        b.draw_far(area, &fit, wire)?;
     }
     for &((u, v, _), r) in &discs {
         let centre = fit.map(u, v);
@@ -638,33 +790,160 @@ fn draw_3d(
         }
     }
 
+    for b in &boxes {
+        b.draw_near(area, &fit, wire)?;
+    }
     draw_pinned(area, layout, input.pinned, 4.5 * layout.unit, |i| {
         at(i).map(|s| s.0)
     })?;
-    let mut detail = format!(
-        "3D · {} vertices · {} triangles · {} springs · {} pinned",
-        n,
-        input.triangles.len(),
-        input.springs,
-        input.pinned.len()
-    );
-    let finite = positions.iter().filter(|p| p.iter().all(|x| x.is_finite()));
-    if let Some((lo, hi)) = finite.fold(None, |acc: Option<(Vector3<f64>, Vector3<f64>)>, p| {
-        Some(acc.map_or((*p, *p), |(lo, hi)| (lo.inf(p), hi.sup(p))))
-    }) {
-        let size = hi - lo;
-        detail.push_str(&format!(
-            " · size {} × {} × {} m",
-            format_length(size.x),
-            format_length(size.y),
-            format_length(size.z)
-        ));
-    }
     Ok(Caption {
-        detail,
+        detail: detail_line(input),
         skipped,
         axes: Some(cam),
     })
+}
+
+/// The caption's second line: what the frame holds, from `input` alone (the counts, and in 3D the
+/// size of the finite vertices' bounding box).
+pub fn detail_line(input: &PreviewInput) -> String {
+    match input.positions {
+        PreviewPositions::Three(positions) => {
+            let mut detail = format!(
+                "3D · {} vertices · {} triangles · {} springs · {} pinned",
+                positions.len(),
+                input.triangles.len(),
+                input.springs,
+                input.pinned.len()
+            );
+            let finite = positions.iter().filter(|p| p.iter().all(|x| x.is_finite()));
+            if let Some((lo, hi)) =
+                finite.fold(None, |acc: Option<(Vector3<f64>, Vector3<f64>)>, p| {
+                    Some(acc.map_or((*p, *p), |(lo, hi)| (lo.inf(p), hi.sup(p))))
+                })
+            {
+                let size = hi - lo;
+                detail.push_str(&format!(
+                    " · size {} × {} × {} m",
+                    format_length(size.x),
+                    format_length(size.y),
+                    format_length(size.z)
+                ));
+            }
+            detail
+        }
+        PreviewPositions::Two(positions) => format!(
+            "2D · {} particles · {} springs · {} pinned",
+            positions.len(),
+            input.springs,
+            input.pinned.len()
+        ),
+    }
+}
+
+/// A box obstacle in the camera's coordinates.
+struct BoxView {
+    /// The eight corners as (u, v, depth); corner k has x = max.x if bit 0 of k is set, y = max.y
+    /// if bit 1 is, z = max.z if bit 2 is, else the min's.
+    corners: [(f64, f64, f64); 8],
+    /// Whether each wall, indexed `2 · axis + side` (side 1 is the max side), is a far wall: one
+    /// whose outward normal points away from the viewer, so that its inside faces the camera.
+    far: [bool; 6],
+}
+
+impl BoxView {
+    /// The box `min`..`max` seen by `cam`; `None` if a corner is not finite.
+    fn new(cam: &Camera, min: &Vector3<f64>, max: &Vector3<f64>) -> Option<Self> {
+        let mut corners = [(0.0, 0.0, 0.0); 8];
+        for (k, corner) in corners.iter_mut().enumerate() {
+            let pick = |axis: usize| {
+                if k >> axis & 1 == 1 {
+                    max[axis]
+                } else {
+                    min[axis]
+                }
+            };
+            *corner = cam.project(&Vector3::new(pick(0), pick(1), pick(2)))?;
+        }
+        let far = std::array::from_fn(|wall| {
+            let (axis, side) = (wall / 2, wall % 2);
+            let outward = if side == 1 { 1.0 } else { -1.0 };
+            outward * cam.toward[axis] < 0.0
+        });
+        Some(BoxView { corners, far })
+    }
+
+    /// The corners of wall `2 · axis + side`, in order around it.
+    fn wall(&self, axis: usize, side: usize) -> [(f64, f64, f64); 4] {
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(i, j)| self.corners[side << axis | i << b | j << c])
+    }
+
+    /// The twelve edges as (corner, corner, the two walls they bound).
+    fn edges() -> impl Iterator<Item = (usize, usize, [usize; 2])> {
+        (0..8usize).flat_map(|k| {
+            (0..3usize)
+                .filter(move |&axis| k >> axis & 1 == 0)
+                .map(move |axis| {
+                    let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+                    let walls = [2 * b + (k >> b & 1), 2 * c + (k >> c & 1)];
+                    (k, k | 1 << axis, walls)
+                })
+        })
+    }
+
+    /// Fills the far walls and draws the edges that bound one (behind the mesh).
+    fn draw_far(
+        &self,
+        area: &DrawingArea<BitMapBackend, Shift>,
+        fit: &Fit,
+        width: u32,
+    ) -> Result<(), String> {
+        for wall in (0..6).filter(|&w| self.far[w]) {
+            let pts: Vec<(i32, i32)> = self
+                .wall(wall / 2, wall % 2)
+                .iter()
+                .map(|&(u, v, _)| px(fit.map(u, v)))
+                .collect();
+            draw!(area, Polygon::new(pts, BOX_WALL.filled()));
+        }
+        for (a, b, _) in Self::edges().filter(|e| e.2.iter().any(|&w| self.far[w])) {
+            self.draw_edge(area, fit, a, b, width)?;
+        }
+        Ok(())
+    }
+
+    /// Draws the edges between two near walls (over the mesh).
+    fn draw_near(
+        &self,
+        area: &DrawingArea<BitMapBackend, Shift>,
+        fit: &Fit,
+        width: u32,
+    ) -> Result<(), String> {
+        for (a, b, _) in Self::edges().filter(|e| e.2.iter().all(|&w| !self.far[w])) {
+            self.draw_edge(area, fit, a, b, width)?;
+        }
+        Ok(())
+    }
+
+    /// Draws the edge from corner `a` to corner `b`.
+    fn draw_edge(
+        &self,
+        area: &DrawingArea<BitMapBackend, Shift>,
+        fit: &Fit,
+        a: usize,
+        b: usize,
+        width: u32,
+    ) -> Result<(), String> {
+        let (p, q) = (self.corners[a], self.corners[b]);
+        draw!(
+            area,
+            PathElement::new(
+                vec![px(fit.map(p.0, p.1)), px(fit.map(q.0, q.1))],
+                BOX_WIRE.stroke_width(width)
+            )
+        );
+        Ok(())
+    }
 }
 
 /// A length for the caption: fixed-point when moderate, scientific otherwise.
@@ -782,14 +1061,8 @@ fn draw_2d(
     let pinned_radius = (1.2 * radius).max(3.0 * layout.unit);
     draw_pinned(area, layout, input.pinned, pinned_radius, at)?;
 
-    let detail = format!(
-        "2D · {} particles · {} springs · {} pinned",
-        n,
-        input.springs,
-        input.pinned.len()
-    );
     Ok(Caption {
-        detail,
+        detail: detail_line(input),
         skipped,
         axes: None,
     })
@@ -845,10 +1118,47 @@ fn draw_caption(
             )
         );
     }
+    if shows_sides(input) {
+        draw_side_legend(area, layout, (x, (62.0 * u) as i32))?;
+    }
     if input.positions.len() > 0 {
         if let Some(cam) = &caption.axes {
             draw_axes(area, layout, cam)?;
         }
+    }
+    Ok(())
+}
+
+/// The legend of the surface's colours, from `at` (supersampled pixels) rightwards: which colour
+/// is the side whose normal (by the triangles' vertex order) faces the viewer.
+fn draw_side_legend(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    layout: &Layout,
+    at: (i32, i32),
+) -> Result<(), String> {
+    let u = layout.unit;
+    let font = (FONT, 13.0 * u).into_font().color(&TEXT_DIM);
+    let swatch = (12.0 * u).round() as i32;
+    let mut x = at.0;
+    for (colour, label) in [
+        (FRONT, "front side (the triangles' normals point out of it)"),
+        (BACK, "back side"),
+    ] {
+        let (top, bottom) = (at.1 + (1.0 * u) as i32, at.1 + (1.0 * u) as i32 + swatch);
+        draw!(
+            area,
+            Rectangle::new(
+                [(x, top), (x + swatch, bottom)],
+                shade(colour, 1.0).filled()
+            )
+        );
+        x += swatch + (6.0 * u) as i32;
+        draw!(area, Text::new(label, (x, at.1), font.clone()));
+        let advance = area
+            .estimate_text_size(label, &font)
+            .map_err(|e| e.to_string())?
+            .0 as i32;
+        x += advance + (18.0 * u) as i32;
     }
     Ok(())
 }
@@ -964,7 +1274,7 @@ mod tests {
         let mut big = vec![0u8; (width * SS * height * SS * 3) as usize];
         let area =
             BitMapBackend::with_buffer(&mut big, (width * SS, height * SS)).into_drawing_area();
-        let layout = Layout::new(width, height);
+        let layout = Layout::new(width, height, shows_sides(input));
         let caption = match input.positions {
             PreviewPositions::Three(p) => draw_3d(&area, &layout, input, p),
             PreviewPositions::Two(p) => draw_2d(&area, &layout, input, p),
@@ -1156,6 +1466,192 @@ mod tests {
         let (p, t, l) = hanging_cloth(4);
         render_preview(&path, &cloth_input(&p, &t, &l, &[0, 3])).unwrap();
         assert_eq!(png_size(&path), (800, 600));
+    }
+
+    /// The 3D setup of a built-in scene or a scene file's text.
+    fn setup_3d(setup: crate::sim::scenes::AnySetup) -> crate::sim::scenes::Setup<3> {
+        match setup {
+            crate::sim::scenes::AnySetup::Three(s) => s,
+            crate::sim::scenes::AnySetup::Two(_) => panic!("a 2D scene"),
+        }
+    }
+
+    #[test]
+    fn the_caption_of_cloth_40_counts_its_scene() {
+        let setup = setup_3d(crate::sim::scenes::builtin("cloth-40").unwrap().unwrap());
+        let (scene, mesh) = (&setup.scene, setup.scene.mesh());
+        let preview = ScenePreview::of(
+            &setup.name,
+            scene,
+            &setup.initial.positions,
+            100,
+            1.0,
+            Integrator::Newton,
+        );
+        let [title, detail] = preview.caption();
+        assert_eq!(title, "cloth-40 · frame 100 · t = 1.000 s · newton");
+        // The counts are the scene's: a cloth draws its triangles, but counts its springs.
+        assert!(!mesh.springs().is_empty() && !mesh.triangles().is_empty());
+        let counts = format!(
+            "3D · {} vertices · {} triangles · {} springs · {} pinned · size ",
+            mesh.vertex_count(),
+            mesh.triangles().len(),
+            mesh.springs().len(),
+            scene.pinned().len()
+        );
+        assert!(detail.starts_with(&counts), "{detail}");
+        assert!(!detail.contains(" 0 springs"), "{detail}");
+        // The picture is drawn from the same input.
+        let pixels = rasterize(&preview.input(), 160, 120).unwrap();
+        assert_eq!(pixels.len(), 160 * 120 * 3);
+    }
+
+    #[test]
+    fn a_scene_with_springs_never_shows_0_springs() {
+        for name in ["cloth-20", "cloth-fall-40", "beam-2", "seed-2d"] {
+            let Some(Ok(setup)) = crate::sim::scenes::builtin(name) else {
+                panic!("{name} is not a built-in scene");
+            };
+            let [_, detail] = match &setup {
+                crate::sim::scenes::AnySetup::Two(s) => ScenePreview::of(
+                    &s.name,
+                    &s.scene,
+                    &s.initial.positions,
+                    0,
+                    0.0,
+                    s.settings.integrator,
+                )
+                .caption(),
+                crate::sim::scenes::AnySetup::Three(s) => ScenePreview::of(
+                    &s.name,
+                    &s.scene,
+                    &s.initial.positions,
+                    0,
+                    0.0,
+                    s.settings.integrator,
+                )
+                .caption(),
+            };
+            let springs = match &setup {
+                crate::sim::scenes::AnySetup::Two(s) => s.scene.mesh().springs().len(),
+                crate::sim::scenes::AnySetup::Three(s) => s.scene.mesh().springs().len(),
+            };
+            assert!(springs > 0, "{name}");
+            assert!(
+                detail.contains(&format!(" {springs} springs")),
+                "{name}: {detail}"
+            );
+            assert!(!detail.contains(" 0 springs"), "{name}: {detail}");
+        }
+    }
+
+    #[test]
+    fn a_box_obstacle_is_drawn() {
+        // A cloth in a 3D box (a container): the scene's box reaches the preview, its far walls
+        // are filled and its edges drawn, none of which a bare picture has.
+        let text = r#"
+name = "cloth-in-a-box"
+[mesh]
+generator = "cloth"
+n = 6
+stiffness = 1000.0
+[forces]
+gravity = [0.0, -9.81, 0.0]
+[[contact]]
+shape = "box"
+min = [-0.5, -1.0, -0.5]
+max = [1.5, 0.5, 1.5]
+[integrator]
+method = "newton"
+time_step = 0.01
+[run]
+steps = 1
+"#;
+        let file = crate::sim::file::parse_scene(text, Path::new("cloth-in-a-box.toml")).unwrap();
+        let setup = setup_3d(file.setup);
+        let preview = ScenePreview::of(
+            &setup.name,
+            &setup.scene,
+            &setup.initial.positions,
+            0,
+            0.0,
+            Integrator::Newton,
+        );
+        assert_eq!(
+            preview.input().obstacles,
+            [PreviewObstacle::Box {
+                min: Vector3::new(-0.5, -1.0, -0.5),
+                max: Vector3::new(1.5, 0.5, 1.5),
+            }]
+        );
+        let count = |pixels: &[u8], c: RGBColor| {
+            pixels
+                .chunks_exact(3)
+                .filter(|p| (p[0], p[1], p[2]) == (c.0, c.1, c.2))
+                .count()
+        };
+        let with = rasterize(&preview.input(), 800, 600).unwrap();
+        let bare = rasterize(
+            &PreviewInput {
+                obstacles: &[],
+                ..preview.input()
+            },
+            800,
+            600,
+        )
+        .unwrap();
+        assert!(
+            count(&with, BOX_WALL) > 10_000,
+            "{}",
+            count(&with, BOX_WALL)
+        );
+        assert_eq!(count(&bare, BOX_WALL), 0);
+        // The box alone: its edges are the only dark pixels between the caption band and the
+        // axis triad (rows 100..520); the twelve edges of a box filling the picture run over
+        // thousands of pixels.
+        let alone = PreviewInput {
+            positions: PreviewPositions::Three(&[]),
+            triangles: &[],
+            lines: &[],
+            pinned: &[],
+            ..preview.input()
+        };
+        let dark = |pixels: &[u8]| {
+            pixels[100 * 800 * 3..520 * 800 * 3]
+                .chunks_exact(3)
+                .filter(|p| p.iter().all(|&c| c < 190))
+                .count()
+        };
+        let edges = dark(&rasterize(&alone, 800, 600).unwrap());
+        assert!(edges > 1500, "{edges}");
+        let nothing = PreviewInput {
+            obstacles: &[],
+            ..alone
+        };
+        assert_eq!(dark(&rasterize(&nothing, 800, 600).unwrap()), 0);
+        // Three far walls and three near ones, whichever way the camera looks.
+        let view = BoxView::new(&Camera::new(), &Vector3::zeros(), &Vector3::repeat(1.0)).unwrap();
+        assert_eq!(view.far.iter().filter(|&&f| f).count(), 3);
+        assert_eq!(BoxView::edges().count(), 12);
+    }
+
+    #[test]
+    fn the_legend_names_the_two_sides_only_for_surfaces() {
+        // Both colours appear in the caption band of a cloth's picture (the swatches), whatever
+        // the cloth shows; a spring-only picture has no legend.
+        let (p, t, l) = hanging_cloth(6);
+        let band = |input: &PreviewInput| {
+            let pixels = rasterize(input, 800, 600).unwrap();
+            // Rows 60..76: the legend's line.
+            let rows = &pixels[60 * 800 * 3..76 * 800 * 3];
+            let has = |c: RGBColor| {
+                rows.chunks_exact(3)
+                    .any(|p| (p[0], p[1], p[2]) == (c.0, c.1, c.2))
+            };
+            (has(shade(FRONT, 1.0)), has(shade(BACK, 1.0)))
+        };
+        assert_eq!(band(&cloth_input(&p, &t, &l, &[])), (true, true));
+        assert_eq!(band(&cloth_input(&p, &[], &l, &[])), (false, false));
     }
 
     #[test]

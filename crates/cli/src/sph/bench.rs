@@ -19,7 +19,6 @@ use std::time::Instant;
 use hooke_sph::scenes::{ColumnInTank, WALL_LAYERS};
 use hooke_sph::{Fluid, FluidParams};
 use nalgebra::SVector;
-use plotters::coord::combinators::IntoLogRange;
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -456,16 +455,8 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
         .flat_map(|r| series.iter().map(move |(_, f, _)| f(r)))
         .filter(|&v| positive(v))
         .collect();
-    let range = |values: &[f64]| {
-        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = values.iter().copied().fold(0.0, f64::max);
-        if !(lo.is_finite() && hi > 0.0) {
-            return 1e-3..1.0;
-        }
-        let lo = 10f64.powf(lo.log10().floor());
-        let hi = 10f64.powf((hi.log10() + 1e-9).ceil());
-        lo..hi.max(lo * 10.0)
-    };
+    // Axes fitted to the data, not widened to whole decades.
+    let range = |values: &[f64]| crate::bench::fitted_log_range(values.iter().copied());
     let mut draw = || -> Result<(), String> {
         let area = BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area();
         area.fill(&WHITE).map_err(|e| e.to_string())?;
@@ -484,7 +475,10 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
             );
         }
         let mut chart = builder
-            .build_cartesian_2d(range(&xs).log_scale(), range(&ys).log_scale())
+            .build_cartesian_2d(
+                crate::bench::log_axis(range(&xs)),
+                crate::bench::log_axis(range(&ys)),
+            )
             .map_err(|e| e.to_string())?;
         let mut mesh = chart.configure_mesh();
         if text {
@@ -492,8 +486,8 @@ fn plot(path: &Path, records: &[SphBenchRecord]) -> Result<(), SphCliError> {
                 .y_desc("wall time per step (ms)")
                 .label_style((FONT, 13))
                 .axis_desc_style((FONT, 15))
-                .x_label_formatter(&|v| format!("{v:.0e}"))
-                .y_label_formatter(&|v| format!("{v:.0e}"));
+                .x_label_formatter(&|v| crate::bench::log_tick_label(*v))
+                .y_label_formatter(&|v| crate::bench::log_tick_label(*v));
         } else {
             mesh.disable_x_mesh().disable_y_mesh();
         }

@@ -436,6 +436,7 @@ fn run_scene<const D: usize>(
             title: &title,
             positions: fluid.positions(),
             speeds: &speeds,
+            speed_scale: (2.0 * gravity.abs() * scene.column_height).sqrt(),
             walls: fluid.boundary_positions(),
             tank_min: scene.tank_min,
             tank_max: scene.tank_max,
