@@ -537,7 +537,11 @@ fn boundary_geometry(stuffed: &Stuffed) -> Vec<[[u64; 3]; 3]> {
 
 /// Graded meshes pass every check of the uniform ones (orientation, the row's angle bounds, faces,
 /// a closed manifold boundary on the surface, volume), have the uniform mesh's boundary at the
-/// same spacing (the grid is the uniform lattice near the surface), and fewer tetrahedra.
+/// same spacing (the grid is the uniform lattice near the surface), and fewer tetrahedra by at
+/// least the case's factor. The counts are deterministic; measured: sphere 2.47× (40 spacings
+/// across, room to grade), torus 1.64× (its tube is 17 spacings thick), bunny at 1/40 of its
+/// diagonal 1.27× (ears and paws are all band). With the former margin (every cube within 2h
+/// plus its half-diagonal of the surface finest) the bunny gave 1.08×.
 #[test]
 fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
     let cases = [
@@ -545,6 +549,7 @@ fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
             surface(&TriMesh::new(icosphere(4, 1.0).0, icosphere(4, 1.0).1).unwrap()),
             0.05,
             true,
+            2.4,
         ),
         (
             surface(&transformed(
@@ -555,10 +560,11 @@ fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
             )),
             0.06,
             true,
+            1.6,
         ),
-        (surface(&data_mesh("bunny.obj")), 0.0, false),
+        (surface(&data_mesh("bunny.obj")), 0.0, false, 1.25),
     ];
-    for (s, spacing, smooth) in cases {
+    for (s, spacing, smooth, factor) in cases {
         let spacing = if spacing > 0.0 {
             spacing
         } else {
@@ -581,7 +587,12 @@ fn graded_meshes_are_valid_and_share_the_uniform_boundary() {
         assert!(
             (graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume
         );
-        assert!(graded.report.tets < uniform.report.tets);
+        assert!(
+            graded.report.tets as f64 * factor <= uniform.report.tets as f64,
+            "graded {} tetrahedra, not {factor}× fewer than uniform {}",
+            graded.report.tets,
+            uniform.report.tets
+        );
     }
 }
 
