@@ -772,6 +772,7 @@ fn nearly_touching_surface_gives_a_valid_mesh() {
 
 #[test]
 fn one_and_two_threads_give_the_same_mesh() {
+    // Both meshers, uniform and graded.
     let s = surface(&data_mesh("bunny.obj"));
     let spacing = diagonal(&s) / 25.0;
     let run = |threads: usize| {
@@ -779,7 +780,11 @@ fn one_and_two_threads_give_the_same_mesh() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| stuff(&s, spacing).mesh)
+            .install(|| {
+                let options = StuffingOptions::new(spacing).unwrap();
+                let graded = tetrahedralize_graded(&s, &options).expect("graded bunny");
+                (stuff(&s, spacing).mesh, graded.mesh)
+            })
     };
     assert_eq!(run(1), run(2));
 }
