@@ -3,9 +3,10 @@
 
 use std::collections::HashMap;
 
+use parry3d_f64::math::Pose;
 use parry3d_f64::math::Vector as PVec;
 use parry3d_f64::query::{PointQuery, Ray, RayCast};
-use parry3d_f64::shape::{TriMesh as ParryMesh, TriMeshFlags};
+use parry3d_f64::shape::{Cuboid, TriMesh as ParryMesh, TriMeshFlags};
 
 use super::StuffingError;
 use crate::{TriMesh, Vec3};
@@ -331,6 +332,18 @@ impl ClosedSurface {
         } else {
             distance
         }
+    }
+
+    /// Distance (m) from the axis-aligned box `[lo, hi]` to the surface (its triangles: a box wholly
+    /// inside the solid is at a positive distance); 0 where they meet. parry3d's box–triangle
+    /// distance (GJK, to its convergence tolerance) over the triangles its BVH does not rule out;
+    /// 0 (the cautious answer) should parry refuse the query.
+    pub(crate) fn box_distance(&self, lo: &Vec3, hi: &Vec3) -> f64 {
+        let centre = (lo + hi) * 0.5;
+        let cuboid = Cuboid::new(to_parry(&((hi - lo) * 0.5)));
+        let pose = Pose::translation(centre.x, centre.y, centre.z);
+        parry3d_f64::query::distance(&Pose::IDENTITY, &self.shape, &pose, &cuboid)
+            .map_or(0.0, |d| d.distance)
     }
 
     /// Where the segment from `inside` (a point inside) to `outside` (a point outside) first leaves
