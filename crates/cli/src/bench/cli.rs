@@ -104,6 +104,11 @@ pub struct BenchArgs {
     /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
     #[arg(long, requires = "sph")]
     pub sph_shuffle: bool,
+    /// Write the step's linear systems at x = y (Newton's clamped and exact Hessians, the
+    /// gradient, PD's matrix, the free vertices and their positions) as MatrixMarket files with a
+    /// README.json into this directory, and run no solver.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "hard_cases", "time_error", "sph"])]
+    pub export_system: Option<PathBuf>,
     /// No progress lines on stderr.
     #[arg(long, short)]
     pub quiet: bool,
@@ -243,6 +248,24 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         if let Some(path) = &args.plot {
             plot_sweep(path, &rows, "time per step against size, cloth-N")?;
         }
+        return Ok(());
+    }
+
+    if let Some(dir) = &args.export_system {
+        let setup = load_setup(&args.scene)?;
+        let options = PrepareOptions {
+            start: StartState::SpeedVsError,
+            reference: false,
+            cache_dir,
+        };
+        let problem = BenchProblem::prepare(&setup, &options, &mut progress)?;
+        let systems = crate::bench::export_system(&problem, dir)?;
+        println!(
+            "{}: {} unknowns written to {}",
+            problem.name,
+            systems.gradient.len(),
+            dir.display()
+        );
         return Ok(());
     }
 
