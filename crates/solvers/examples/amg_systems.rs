@@ -5,31 +5,29 @@
 //! refresh and solve times, the PCG iterations to the tolerance and the true relative residual
 //! (benches/results/amg.md).
 //!
-//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1]`
+//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1] [gs|symmetric] [power iterations]`
 //! (RAYON_NUM_THREADS=1 for one thread).
 
 use std::path::Path;
 use std::time::Instant;
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use hooke_solvers::{Amg, AmgParams, CgParams, ConjugateGradient, LinearOperator, Symmetric};
+use hooke_solvers::{
+    Amg, AmgParams, AmgSmoother, CgParams, ConjugateGradient, LinearOperator, Symmetric,
+};
 
 fn read_sparse(path: &Path) -> SparseColMat<usize, f64> {
-    let t: sprs::TriMat<f64> = sprs::io::read_matrix_market(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let t: sprs::TriMat<f64> =
+        sprs::io::read_matrix_market(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let m: sprs::CsMat<f64> = t.to_csc();
     let (n, c) = m.shape();
     let (ptr, idx, val) = m.into_raw_storage();
-    SparseColMat::new(
-        SymbolicSparseColMat::new_checked(n, c, ptr, None, idx),
-        val,
-    )
+    SparseColMat::new(SymbolicSparseColMat::new_checked(n, c, ptr, None, idx), val)
 }
 
 /// A dense MatrixMarket array (column-major values).
 fn read_dense(path: &Path) -> (usize, usize, Vec<f64>) {
-    let text =
-        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut lines = text.lines().filter(|l| !l.starts_with('%'));
     let size: Vec<usize> = lines
         .next()
@@ -119,11 +117,24 @@ fn run(
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = Path::new(args.first().expect("usage: amg_systems DIR [tolerance] [sweeps]"));
+    let dir = Path::new(
+        args.first()
+            .expect("usage: amg_systems DIR [tolerance] [sweeps]"),
+    );
     let tolerance: f64 = args.get(1).map_or(1e-6, |s| s.parse().expect("tolerance"));
     let sweeps: usize = args.get(2).map_or(1, |s| s.parse().expect("sweeps"));
+    let smoother = match args.get(3).map(String::as_str) {
+        Some("symmetric") => AmgSmoother::SymmetricGaussSeidel,
+        _ => AmgSmoother::GaussSeidel,
+    };
     let params = AmgParams {
+        smoother,
         smoother_sweeps: sweeps,
+        spectral_radius_iterations: args
+            .get(4)
+            .map_or(AmgParams::default().spectral_radius_iterations, |s| {
+                s.parse().expect("power iterations")
+            }),
         ..AmgParams::default()
     };
     println!(

@@ -30,6 +30,18 @@ use crate::params::{self, ParamError};
 /// blocks): the diagonal blocks are inverted in fixed-size stack arrays.
 pub const AMG_MAX_BLOCK: usize = 8;
 
+/// The V-cycle's smoother. Both make the cycle a symmetric operator: the sweeps after the coarse
+/// correction are the adjoints of those before, in reverse order.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AmgSmoother {
+    /// Block Gauss–Seidel: forward sweeps before the coarse correction, backward sweeps after
+    /// (half the smoothing work of the symmetric sweeps per cycle).
+    #[default]
+    GaussSeidel,
+    /// Symmetric block Gauss–Seidel: a forward and a backward sweep per sweep, before and after.
+    SymmetricGaussSeidel,
+}
+
 /// Settings of [`Amg`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AmgParams {
@@ -41,8 +53,9 @@ pub struct AmgParams {
     pub max_coarse: usize,
     /// The most levels, the finest included. Default 10.
     pub max_levels: usize,
-    /// Symmetric Gauss–Seidel sweeps (each a forward and a backward one) before and after the
-    /// coarse correction. Default 1.
+    /// The smoother of every level but the coarsest.
+    pub smoother: AmgSmoother,
+    /// Smoother sweeps before and after the coarse correction (see [`AmgSmoother`]). Default 1.
     pub smoother_sweeps: usize,
     /// ω ρ(D⁻¹A) of the prolongator smoothing. Default 4/3.
     pub prolongator_damping: f64,
@@ -56,6 +69,7 @@ impl Default for AmgParams {
             strength_threshold: 0.0,
             max_coarse: 1000,
             max_levels: 10,
+            smoother: AmgSmoother::default(),
             smoother_sweeps: 1,
             prolongator_damping: 4.0 / 3.0,
             spectral_radius_iterations: 15,
@@ -237,21 +251,52 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
     }
 }
 
-/// The values of C = A B into C's pattern (from [`product_pattern`]); `dense` is a zeroed scratch
-/// of C's column count, zeroed again on return. Sums in a fixed order.
-fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [f64]) {
-    for i in 0..a.n_rows {
-        for e in a.row(i) {
-            let av = a.val[e];
-            for f in b.row(a.col[e]) {
-                dense[b.col[f]] += av * b.val[f];
+/// The values of C = A B into C's pattern (from [`product_pattern`]), rows split into one
+/// contiguous chunk per scratch vector of `dense` (each zeroed, of at least C's column count, and
+/// zeroed again on return), the chunks in parallel. Each row is summed in a fixed order by one
+/// thread, so the bits do not depend on the split.
+fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
+    let rows = a.n_rows;
+    let chunks = dense.len().clamp(1, rows.max(1));
+    let chunk_rows = rows.div_ceil(chunks).max(1);
+    // Split C's values at the chunks' row boundaries.
+    let mut pieces: Vec<(usize, &mut [f64])> = Vec::new();
+    let mut rest: &mut [f64] = &mut c.val;
+    let mut consumed = 0;
+    let mut first = 0;
+    while first < rows {
+        let last = (first + chunk_rows).min(rows);
+        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(c.ptr[last] - consumed);
+        consumed = c.ptr[last];
+        pieces.push((first, piece));
+        rest = tail;
+        first = last;
+    }
+    let (ptr, col) = (&c.ptr, &c.col);
+    let work = |((first, values), dense): ((usize, &mut [f64]), &mut Vec<f64>)| {
+        let last = (first + chunk_rows).min(rows);
+        let base = ptr[first];
+        for i in first..last {
+            for e in a.row(i) {
+                let av = a.val[e];
+                for f in b.row(a.col[e]) {
+                    dense[b.col[f]] += av * b.val[f];
+                }
+            }
+            for e in ptr[i]..ptr[i + 1] {
+                let j = col[e];
+                values[e - base] = dense[j];
+                dense[j] = 0.0;
             }
         }
-        for e in c.ptr[i]..c.ptr[i + 1] {
-            let j = c.col[e];
-            c.val[e] = dense[j];
-            dense[j] = 0.0;
-        }
+    };
+    if pieces.len() > 1 {
+        pieces
+            .into_par_iter()
+            .zip(dense.par_iter_mut())
+            .for_each(work);
+    } else {
+        pieces.into_iter().zip(dense.iter_mut()).for_each(work);
     }
 }
 
@@ -380,8 +425,11 @@ pub struct Amg {
     params: AmgParams,
     levels: Vec<Level>,
     coarse: SparseCholesky,
-    /// Scratch of the product numerics, as long as the largest column count.
-    dense: Vec<f64>,
+    /// Scratch of the product numerics, one per rayon thread (grown when the pool is larger than
+    /// at the last fill), each as long as the largest column count.
+    dense: Vec<Vec<f64>>,
+    /// The largest column count of the products (the scratch length).
+    largest: usize,
     /// The given matrix' stored entries (its pattern check in [`Amg::refresh`]).
     fine_nnz: usize,
 }
@@ -448,7 +496,7 @@ impl Amg {
                 block: block_size,
             });
         }
-        let k = if n == 0 { 0 } else { near_nullspace.len() / n };
+        let k = near_nullspace.len().checked_div(n).unwrap_or(0);
         if n == 0 || k == 0 || k > AMG_MAX_BLOCK || near_nullspace.len() != k * n {
             return Err(AmgError::NearNullspace {
                 len: near_nullspace.len(),
@@ -519,7 +567,8 @@ impl Amg {
             params,
             levels,
             coarse,
-            dense: vec![0.0; largest],
+            dense: Vec::new(),
+            largest,
             fine_nnz,
         };
         amg.fill()?;
@@ -527,8 +576,9 @@ impl Amg {
     }
 
     /// Refill every level from new values of the matrix, on the pattern the hierarchy was built for
-    /// (the aggregates and the near-nullspace stay): no symbolic work and no allocation; the same
-    /// bits as [`Amg::new`] on `a` with the same near-nullspace.
+    /// (the aggregates and the near-nullspace stay): no symbolic work (the only allocations are a
+    /// list of row chunks per product, and a scratch vector when the rayon pool has grown); the
+    /// same bits as [`Amg::new`] on `a` with the same near-nullspace, whatever the thread count.
     ///
     /// # Errors
     /// [`AmgError::PatternMismatch`] if `a` has another size or pattern, [`AmgError::NonFinite`],
@@ -573,6 +623,11 @@ impl Amg {
         if self.levels[0].a.val.iter().any(|v| !v.is_finite()) {
             return Err(AmgError::NonFinite);
         }
+        let threads = rayon::current_num_threads().max(1);
+        while self.dense.len() < threads {
+            self.dense.push(vec![0.0; self.largest]);
+        }
+        let dense = &mut self.dense[..threads];
         let omega_scale = self.params.prolongator_damping;
         let iterations = self.params.spectral_radius_iterations;
         for depth in 0..self.levels.len() {
@@ -587,7 +642,7 @@ impl Amg {
             let omega = omega_scale / rho;
             let tr = level.transfer.as_mut().expect("checked");
             tr.power = power;
-            product_values(&level.a, &tr.t, &mut tr.at, &mut self.dense);
+            product_values(&level.a, &tr.t, &mut tr.at, dense);
             smooth_values(
                 tr,
                 &level.block_ptr,
@@ -598,9 +653,9 @@ impl Amg {
             for (e, &m) in tr.p_to_r.iter().enumerate() {
                 tr.r.val[m] = tr.p.val[e];
             }
-            product_values(&level.a, &tr.p, &mut tr.ap, &mut self.dense);
+            product_values(&level.a, &tr.p, &mut tr.ap, dense);
             let coarse = &mut lower[0].a;
-            product_values(&tr.r, &tr.ap, coarse, &mut self.dense);
+            product_values(&tr.r, &tr.ap, coarse, dense);
             for (e, &t) in tr.coarse_transpose.iter().enumerate() {
                 if e < t {
                     let v = 0.5 * (coarse.val[e] + coarse.val[t]);
@@ -627,6 +682,7 @@ impl Amg {
     /// One V-cycle: z ≈ A⁻¹ r.
     fn vcycle(&mut self, r: &[f64], z: &mut [f64]) {
         let sweeps = self.params.smoother_sweeps;
+        let symmetric_each_side = self.params.smoother == AmgSmoother::SymmetricGaussSeidel;
         self.levels[0].b.copy_from_slice(r);
         let depth = self.levels.len();
         for l in 0..depth - 1 {
@@ -635,7 +691,9 @@ impl Amg {
             level.x.fill(0.0);
             for _ in 0..sweeps {
                 level.sweep(true);
-                level.sweep(false);
+                if symmetric_each_side {
+                    level.sweep(false);
+                }
             }
             level.a.residual(&level.b, &level.x, &mut level.r);
             let tr = level.transfer.as_ref().expect("above the coarsest");
@@ -655,7 +713,9 @@ impl Amg {
                 *x += c;
             }
             for _ in 0..sweeps {
-                level.sweep(true);
+                if symmetric_each_side {
+                    level.sweep(true);
+                }
                 level.sweep(false);
             }
         }
@@ -857,6 +917,9 @@ fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
     // Block graph with squared Frobenius norms.
     let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); blocks];
     let mut diag = vec![0.0; blocks];
+    // Per block, its slot in the current block's neighbour list (valid when `owner` is b).
+    let mut slot = vec![0usize; blocks];
+    let mut owner = vec![usize::MAX; blocks];
     for b in 0..blocks {
         let list = &mut neighbours[b];
         for i in block_ptr[b]..block_ptr[b + 1] {
@@ -865,9 +928,11 @@ fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
                 let v = a.val[e] * a.val[e];
                 if c == b {
                     diag[b] += v;
-                } else if let Some(last) = list.iter_mut().find(|(n, _)| *n == c) {
-                    last.1 += v;
+                } else if owner[c] == b {
+                    list[slot[c]].1 += v;
                 } else {
+                    owner[c] = b;
+                    slot[c] = list.len();
                     list.push((c, v));
                 }
             }

@@ -56,7 +56,7 @@ mod params;
 pub mod projective;
 mod report;
 
-pub use amg::{Amg, AmgError, AmgParams, AMG_MAX_BLOCK};
+pub use amg::{Amg, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use chebyshev::{ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS};

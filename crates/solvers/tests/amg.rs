@@ -5,8 +5,8 @@
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use hooke_mesh::{generators, SpringMesh};
 use hooke_solvers::{
-    Amg, AmgError, AmgParams, BlockJacobi, CgParams, CholeskyParams, ConjugateGradient,
-    NewtonProblem, Preconditioner, SparseCholesky, StopReason, Symmetric,
+    Amg, AmgError, AmgParams, AmgSmoother, BlockJacobi, CgParams, CholeskyParams,
+    ConjugateGradient, NewtonProblem, Preconditioner, SparseCholesky, StopReason, Symmetric,
 };
 
 mod common;
@@ -73,8 +73,22 @@ fn norm(a: &[f64]) -> f64 {
 }
 
 fn symmetric_positive_definite(a: SparseColMatRef<'_, usize, f64>, positions: &[f64]) {
+    for smoother in [AmgSmoother::GaussSeidel, AmgSmoother::SymmetricGaussSeidel] {
+        let params = AmgParams {
+            smoother,
+            ..small_coarse()
+        };
+        symmetric_positive_definite_with(a, positions, params);
+    }
+}
+
+fn symmetric_positive_definite_with(
+    a: SparseColMatRef<'_, usize, f64>,
+    positions: &[f64],
+    params: AmgParams,
+) {
     let modes = Amg::rigid_body_modes(positions);
-    let mut amg = Amg::new(a, 3, &modes, small_coarse()).unwrap();
+    let mut amg = Amg::new(a, 3, &modes, params).unwrap();
     assert!(amg.level_count() >= 2, "levels {:?}", amg.level_sizes());
     let n = a.nrows();
     for seed in 0..5 {
