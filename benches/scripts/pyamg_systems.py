@@ -1,4 +1,4 @@
-"""pyamg side by side with hooke's AMG (docs/solvers.md §2.5) on systems written by
+"""pyamg side by side with hooke's AMG (docs/solvers.md §2.4) on systems written by
 `hooke bench SCENE --export-system DIR`: smoothed aggregation on Newton's clamped Hessian as
 3x3 BSR with the 6 rigid-body modes (about the centroid) as near-nullspace, strength
 ('symmetric', theta 0), Jacobi prolongator smoothing (omega 4/3, pyamg's default), symmetric block

@@ -1,11 +1,11 @@
-//! PCG with the smoothed-aggregation AMG preconditioner (docs/solvers.md §2.5) on systems written
+//! PCG with the smoothed-aggregation AMG preconditioner (docs/solvers.md §2.4) on systems written
 //! by `hooke bench SCENE --export-system DIR`: Newton's clamped Hessian with the right-hand side
 //! −∇Φ(y) and the 6 rigid-body modes of the exported positions, and PD's scalar matrix M + h²L
 //! with a constant near-nullspace and a random right-hand side. Prints the hierarchy, the set-up,
 //! refresh and solve times, the PCG iterations to the tolerance and the true relative residual
 //! (benches/results/amg.md).
 //!
-//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1] [gs|symmetric] [power iterations]`
+//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1] [symmetric|gs] [power iterations]`
 //! (RAYON_NUM_THREADS=1 for one thread).
 
 use std::path::Path;
@@ -124,8 +124,8 @@ fn main() {
     let tolerance: f64 = args.get(1).map_or(1e-6, |s| s.parse().expect("tolerance"));
     let sweeps: usize = args.get(2).map_or(1, |s| s.parse().expect("sweeps"));
     let smoother = match args.get(3).map(String::as_str) {
-        Some("symmetric") => AmgSmoother::SymmetricGaussSeidel,
-        _ => AmgSmoother::GaussSeidel,
+        Some("gs") => AmgSmoother::GaussSeidel,
+        _ => AmgSmoother::SymmetricGaussSeidel,
     };
     let params = AmgParams {
         smoother,

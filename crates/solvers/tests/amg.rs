@@ -1,4 +1,4 @@
-//! Smoothed-aggregation AMG (docs/solvers.md §2.5): the V-cycle is a symmetric positive definite
+//! Smoothed-aggregation AMG (docs/solvers.md §2.4): the V-cycle is a symmetric positive definite
 //! preconditioner, PCG with it reaches the direct solve's answer, a refresh equals a fresh set-up
 //! bit for bit, the result does not depend on the thread count, and bad input is a typed error.
 

@@ -1,6 +1,6 @@
 //! `hooke bench SCENE --export-system DIR`: the linear systems of the measured step (docs/model.md
 //! §9, the speed-vs-error state of docs/scenes.md §8) as MatrixMarket files, so that other
-//! implementations (and the multigrid preconditioner's measurements, docs/solvers.md §2.5) can be
+//! implementations (and the multigrid preconditioner's measurements, docs/solvers.md §2.4) can be
 //! run on exactly the matrices hooke solves.
 //!
 //! Everything is taken at x = y, the inertial target and every solver's initial guess, over the
