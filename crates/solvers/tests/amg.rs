@@ -6,13 +6,14 @@ use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use hooke_mesh::{generators, SpringMesh};
 use hooke_solvers::{
     Amg, AmgError, AmgParams, AmgSmoother, BlockJacobi, CgParams, CholeskyParams,
-    ConjugateGradient, NewtonProblem, Preconditioner, SparseCholesky, StopReason, Symmetric,
+    ConjugateGradient, Convergence, NewtonCg, NewtonCgParams, NewtonProblem, Preconditioner,
+    SparseCholesky, StopReason, Symmetric,
 };
 
 mod common;
 #[allow(dead_code)] // the Newton helpers serve other test crates
 mod waved_step;
-use waved_step::{clamped, step};
+use waved_step::{clamped, newton_solution, objective_error, step};
 
 /// The clamped Hessian at y of a waved step on `mesh` (compressed and stretched springs: an SPD
 /// matrix with the anisotropy of a real Newton system) and the free vertices' positions y.
@@ -371,4 +372,48 @@ fn bad_input_is_a_typed_error() {
         ));
     }
     assert_eq!(n % 3, 0);
+}
+
+/// Newton-CG preconditioned by AMG, set up once on the clamped Hessian at the initial guess y
+/// (and not refreshed: a fixed SPD preconditioner for every Newton iteration), reaches Newton's
+/// minimiser to the objective error docs/model.md §9.2 holds solvers to.
+fn newton_cg_with_amg_reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32]) {
+    let mut s = step(mesh, pinned, 1.0 / 30.0, 0.05);
+    let solution = newton_solution(&mut s);
+    let mut x = s.start.clone();
+    let h = s.problem.convexified_hessian(&x).expect("clamped Hessian");
+    let h = SparseColMat::new(h.symbolic().to_owned().unwrap(), h.val().to_vec());
+    let modes = Amg::rigid_body_modes(&x);
+    let mut amg = Amg::new(h.as_ref(), 3, &modes, AmgParams::default()).unwrap();
+    let params = NewtonCgParams {
+        convergence: Convergence::RelativeGradient,
+        tolerance: 1e-11,
+        ..Default::default()
+    };
+    let report = NewtonCg::new(s.problem.dim(), params)
+        .unwrap()
+        .minimize(&mut s.problem, &mut amg, &mut x)
+        .unwrap();
+    let error = objective_error(&mut s, &x, &solution);
+    eprintln!(
+        "Newton-CG with AMG: {} iterations, {} CG iterations, objective error {error:e}",
+        report.iterations, report.cg_iterations
+    );
+    assert!(
+        matches!(report.stop, StopReason::Converged | StopReason::RoundOff),
+        "{:?}",
+        report.stop
+    );
+    assert!(error.abs() <= 1e-10, "objective error {error:e}");
+}
+
+#[test]
+fn newton_cg_with_amg_reaches_newtons_solution_on_cloth_10() {
+    newton_cg_with_amg_reaches_newton(&generators::cloth(10, 1e3).unwrap(), &[0, 9]);
+}
+
+#[test]
+fn newton_cg_with_amg_reaches_newtons_solution_on_beam_2() {
+    let mesh = generators::beam(2).unwrap();
+    newton_cg_with_amg_reaches_newton(&mesh, &clamped(&mesh));
 }
