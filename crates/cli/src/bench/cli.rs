@@ -23,7 +23,8 @@ pub struct BenchArgs {
     /// (iterations), newton-tol:1e-4, cg:10 and cg-tol:1e-2 (linearised step, CG), jacobi:10 and
     /// jacobi-tol:1e-2 (linearised step, block Jacobi), linearized-cg, linearized-jacobi,
     /// lbfgs:20,50 and lbfgs-tol:1e-6 (L-BFGS on PD's factor), chebyshev:10,50 (Chebyshev PD),
-    /// newton-cg:2,5 and newton-cg-tol:1e-8 (inexact Newton, PCG), newton-relaxed:3 and
+    /// newton-cg:2,5 and newton-cg-tol:1e-8 (inexact Newton, PCG), newton-cg-amg:2,5 and
+    /// newton-cg-amg-tol:1e-8 (the same with an AMG preconditioner), newton-relaxed:3 and
     /// newton-relaxed-tol:1e-8 (Newton with the buckling relaxation). A name alone takes its
     /// default settings. Default: pd, newton, newton-tol, cg-tol, jacobi,
     /// linearized-cg (with --sweep: pd:10, newton-tol:1e-8, linearized-cg).
