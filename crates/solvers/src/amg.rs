@@ -13,11 +13,12 @@
 //! work, no allocation), giving the same bits as a fresh set-up with the same near-nullspace. The
 //! coarsest level is factored by [`crate::SparseCholesky`].
 //!
-//! The V-cycle smooths with symmetric block Gauss–Seidel (a forward then a backward sweep, before
-//! and after the coarse correction), so the preconditioner is symmetric positive definite, as CG
-//! needs. The sweeps are serial; the residual products run row-parallel on rayon, each row summed
-//! in a fixed order, so the result has the same bits whatever the thread count. Every buffer of
-//! the cycle is allocated at set-up.
+//! The V-cycle smooths with symmetric block Gauss–Seidel by default (a forward then a backward
+//! sweep, before and after the coarse correction; [`AmgSmoother`]), the sweeps after being the
+//! adjoints of those before, so the preconditioner is symmetric positive definite, as CG needs.
+//! The sweeps are serial; the residual products and the refill's sparse products run row-parallel
+//! on rayon, each row summed in a fixed order, so the result has the same bits whatever the thread
+//! count. Every buffer of the cycle is allocated at set-up.
 
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use rayon::prelude::*;
