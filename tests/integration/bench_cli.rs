@@ -326,3 +326,32 @@ fn bench_help_names_every_solver_spec() {
         );
     }
 }
+
+/// `--export-system DIR` writes every file of the step's systems and runs no solver (the files'
+/// contents are checked against the in-memory matrices in hooke-cli's unit test).
+#[test]
+fn export_system_writes_the_step_systems() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("cloth-10");
+    let out = Command::new(env!("CARGO_BIN_EXE_hooke"))
+        .args(["bench", "cloth-10", "--export-system"])
+        .arg(&target)
+        .args(["--no-cache", "-q"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for name in hooke_cli::bench::EXPORT_FILES {
+        assert!(target.join(name).is_file(), "{name} missing");
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("cloth-10: 294 unknowns"), "{stdout}");
+    assert!(!stdout.contains("step ms"), "no solver runs: {stdout}");
+    let readme: Value =
+        serde_json::from_str(&std::fs::read_to_string(target.join("README.json")).unwrap())
+            .unwrap();
+    assert_eq!(readme["unknowns"], 294);
+}

@@ -1,15 +1,8 @@
 //! The `hooke` command end to end: it runs scenes and leaves frames, a summary and a preview.
 
-use std::path::Path;
-use std::process::Command;
+use crate::command::hooke;
 
-fn hooke(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hooke"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the hooke binary runs")
-}
+use std::path::Path;
 
 fn png_size(path: &Path) -> (u32, u32) {
     let bytes = std::fs::read(path).unwrap();

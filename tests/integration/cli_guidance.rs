@@ -3,46 +3,14 @@
 //! name flags and scene keys (never the library's Rust types), the energy watchdog's advice fits
 //! the integrator, and input files are checked before any work. Each test runs in about a second.
 
+use crate::command::{fails_with, hooke, stderr, stdout};
+
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
 
 use hooke::sim::Integrator;
 use hooke_cli::bench::{
     SolverKind, HARD_CASES, HARD_CASE_OVERRIDES, HARD_INTEGRATORS, HARD_SCENES,
 };
-
-fn hooke(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hooke"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdin(Stdio::null())
-        .output()
-        .expect("the hooke binary runs")
-}
-
-fn stdout(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// Runs `args`, which must fail with a message (no panic) containing every one of `needles`;
-/// returns the message.
-fn fails_with(args: &[&str], needles: &[&str]) -> String {
-    let out = hooke(args);
-    let text = stderr(&out);
-    assert!(!out.status.success(), "{args:?} should fail:\n{text}");
-    assert!(!text.contains("panicked"), "{args:?} panicked:\n{text}");
-    for needle in needles {
-        assert!(
-            text.contains(needle),
-            "{args:?}: {needle:?} not in:\n{text}"
-        );
-    }
-    text
-}
 
 /// The scene names `hooke scenes` lists, in its order.
 fn listed_scenes() -> Vec<String> {

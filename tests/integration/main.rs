@@ -9,6 +9,7 @@ mod bench_sweep;
 mod bench_time_error;
 mod cli;
 mod cli_guidance;
+mod command;
 mod contact;
 mod hard_cases;
 mod implicit;

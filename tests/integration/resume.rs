@@ -10,18 +10,12 @@
 //! `--resume DIR --steps N` extends a finished or interrupted run to N frames: the files are then
 //! those of a run of N frames from the start.
 
+use crate::command::hooke;
+
 use std::collections::BTreeMap;
 use std::io::BufRead;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-fn hooke(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hooke"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the hooke binary runs")
-}
 
 fn ok(out: &Output) {
     assert!(

@@ -4,34 +4,10 @@
 //! `hooke bench --sph` prints a row and writes JSON. Coarse spacings and short runs keep each test
 //! to about a second in the dev profile.
 
+use crate::command::{fails_with, hooke, stderr};
+
 use std::path::Path;
 use std::process::Command;
-
-fn hooke(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hooke"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the hooke binary runs")
-}
-
-fn stderr(out: &std::process::Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// Runs `args`, which must fail with a message (no panic) containing every one of `needles`.
-fn fails_with(args: &[&str], needles: &[&str]) {
-    let out = hooke(args);
-    let text = stderr(&out);
-    assert!(!out.status.success(), "{args:?} should fail:\n{text}");
-    assert!(!text.contains("panicked"), "{args:?} panicked:\n{text}");
-    for needle in needles {
-        assert!(
-            text.contains(needle),
-            "{args:?}: {needle:?} not in:\n{text}"
-        );
-    }
-}
 
 fn png_size(path: &Path) -> (u32, u32) {
     let bytes = std::fs::read(path).unwrap();

@@ -1,14 +1,6 @@
 //! `hooke mesh tetrahedralize` and `hooke mesh quality`, end to end.
 
-use std::process::Command;
-
-fn hooke(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hooke"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the hooke binary runs")
-}
+use crate::command::hooke;
 
 #[test]
 fn tetrahedralize_writes_every_format_and_the_json_report() {

@@ -3,6 +3,8 @@
 //! Linear and nonlinear solvers for hooke's implicit integrators:
 //! - the [`LinearOperator`] and [`Preconditioner`] traits, preconditioned [`ConjugateGradient`]
 //!   and block [`Jacobi`], which return `Result<`[`Report`]`, `[`SolveError`]`>`;
+//! - [`Amg`], a smoothed-aggregation algebraic multigrid preconditioner for 3 × 3-block (or
+//!   scalar) SPD systems, `Result<_, `[`AmgError`]`>`;
 //! - [`SparseCholesky`] (faer, symbolic analysis reused), `Result<_, `[`CholeskyError`]`>`;
 //! - [`Newton`] on a [`NewtonProblem`] (LDLᵀ with inertia, an indefinite-Hessian policy, a line
 //!   search, and an opt-in nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's
@@ -39,6 +41,7 @@
 /// crate's public signatures, re-exported so that callers build them with the same version.
 pub use faer;
 
+pub mod amg;
 pub mod backward_euler;
 pub mod cg;
 pub mod chebyshev;
@@ -53,6 +56,7 @@ mod params;
 pub mod projective;
 mod report;
 
+pub use amg::{Amg, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use chebyshev::{ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS};

@@ -13,8 +13,9 @@ use faer::sparse::{SparseColMat, Triplet};
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
-    BackwardEulerStep, BlockJacobi, CgParams, ConjugateGradient, Jacobi, JacobiParams, Newton,
-    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation, Symmetric,
+    Amg, AmgParams, BackwardEulerStep, BlockJacobi, CgParams, ConjugateGradient, Jacobi,
+    JacobiParams, Newton, NewtonParams, NewtonProblem, PdParams, Preconditioner,
+    ProjectiveDynamics, Relaxation, Symmetric,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -298,5 +299,47 @@ fn solvers_do_not_allocate_per_iteration() {
         two,
         2 * few,
         "Jacobi with refilled blocks: {two} allocations in 2 steps, {few} in one solve"
+    );
+
+    // AMG: no allocation in a V-cycle, nor per PCG iteration with it.
+    let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
+    let mut unknowns = vec![0.0; step.dim()];
+    step.set_step(&y, mesh.positions(), &mut unknowns);
+    let hessian = step.convexified_hessian(&unknowns).unwrap();
+    let hessian = SparseColMat::new(
+        hessian.symbolic().to_owned().unwrap(),
+        hessian.val().to_vec(),
+    );
+    let modes = Amg::rigid_body_modes(&unknowns);
+    let amg_params = AmgParams {
+        max_coarse: 40,
+        ..AmgParams::default()
+    };
+    let mut amg = Amg::new(hessian.as_ref(), 3, &modes, amg_params).unwrap();
+    assert!(amg.level_count() >= 3);
+    let r: Vec<f64> = (0..step.dim()).map(|i| (i as f64 * 0.37).sin()).collect();
+    let mut z = vec![0.0; r.len()];
+    let cycles = fewest(|| {
+        allocations(|| {
+            for _ in 0..20 {
+                Preconditioner::apply(&mut amg, &r, &mut z);
+            }
+        })
+    });
+    assert_eq!(cycles, 0, "20 V-cycles allocated {cycles} times");
+    let mut amg_cg = ConjugateGradient::new(CgParams::default());
+    let mut pcg = |iterations: usize| {
+        amg_cg.params.max_iterations = iterations;
+        amg_cg.params.tolerance = 0.0;
+        let mut x = vec![0.0; r.len()];
+        allocations(|| {
+            let _ = amg_cg.solve(&Symmetric(hessian.as_ref()), &mut amg, &r, &mut x);
+        })
+    };
+    pcg(3);
+    let (few, many) = (fewest(|| pcg(2)), fewest(|| pcg(30)));
+    assert_eq!(
+        few, many,
+        "PCG with AMG: {few} allocations in 2 iterations, {many} in 30"
     );
 }

@@ -100,6 +100,11 @@ pub struct BenchArgs {
     /// mixing leaves them (the column is built row by row, which is nearly the grid's order).
     #[arg(long, requires = "sph")]
     pub sph_shuffle: bool,
+    /// Write the step's linear systems at x = y (Newton's clamped and exact Hessians, the
+    /// gradient, PD's matrix, the free vertices and their positions) as MatrixMarket files with a
+    /// README.json into this directory, and run no solver.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "hard_cases", "time_error", "sph"])]
+    pub export_system: Option<PathBuf>,
     /// No progress lines on stderr.
     #[arg(long, short)]
     pub quiet: bool,
@@ -247,6 +252,25 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
 
     // Every input is read before the work starts: a missing or malformed file fails at once.
     let compared = read_compared(&args.compare)?;
+
+    if let Some(dir) = &args.export_system {
+        let setup = load_setup(&args.scene)?;
+        let options = PrepareOptions {
+            start: StartState::SpeedVsError,
+            reference: false,
+            cache_dir,
+        };
+        let problem = BenchProblem::prepare(&setup, &options, &mut progress)?;
+        let systems = crate::bench::export_system(&problem, dir)?;
+        println!(
+            "{}: {} unknowns written to {}",
+            problem.name,
+            systems.gradient.len(),
+            dir.display()
+        );
+        return Ok(());
+    }
+
     let specs = specs.unwrap_or_else(SolverSpec::defaults);
     let setup = load_setup(&args.scene)?;
     let problem = BenchProblem::prepare(

@@ -32,6 +32,7 @@
 //! ```
 
 pub(crate) mod cli;
+mod export;
 mod hard;
 mod measure;
 mod output;
@@ -45,6 +46,7 @@ mod time_error;
 use std::path::PathBuf;
 
 pub use cli::{run_command, BenchArgs};
+pub use export::{export_system, StepSystems, EXPORT_FILES};
 pub use hard::{
     deepest_penetration, energy_scale, hard_case, hard_case_settings, hard_cases, hard_scene,
     HardCaseOptions, HardOutcome, HardResult, RunStats, BUNNY_DROP_FRAMES, HARD_CASES,

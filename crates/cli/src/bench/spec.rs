@@ -47,6 +47,12 @@ pub enum SolverKind {
     NewtonCg,
     /// `newton-cg-tol:T`: as `newton-cg`, until the relative gradient ≤ T (at most 500 iterations).
     NewtonCgTol,
+    /// `newton-cg-amg:K`: as `newton-cg`, with PCG preconditioned by smoothed-aggregation AMG
+    /// (docs/solvers.md §2.4) set up on the clamped Hessian at y, inside the timed step.
+    NewtonCgAmg,
+    /// `newton-cg-amg-tol:T`: as `newton-cg-amg`, until the relative gradient ≤ T (at most 500
+    /// iterations).
+    NewtonCgAmgTol,
     /// `newton-relaxed:K`: as `newton`, with the opt-in nonlinear relaxation
     /// ([`crate::solvers::Relaxation::BUCKLING`]) after every accepted step.
     NewtonRelaxed,
@@ -72,6 +78,8 @@ impl SolverKind {
         SolverKind::Chebyshev,
         SolverKind::NewtonCg,
         SolverKind::NewtonCgTol,
+        SolverKind::NewtonCgAmg,
+        SolverKind::NewtonCgAmgTol,
         SolverKind::NewtonRelaxed,
         SolverKind::NewtonRelaxedTol,
     ];
@@ -94,6 +102,8 @@ impl SolverKind {
             SolverKind::Chebyshev => "chebyshev",
             SolverKind::NewtonCg => "newton-cg",
             SolverKind::NewtonCgTol => "newton-cg-tol",
+            SolverKind::NewtonCgAmg => "newton-cg-amg",
+            SolverKind::NewtonCgAmgTol => "newton-cg-amg-tol",
             SolverKind::NewtonRelaxed => "newton-relaxed",
             SolverKind::NewtonRelaxedTol => "newton-relaxed-tol",
         }
@@ -104,7 +114,9 @@ impl SolverKind {
     pub fn usage(self) -> String {
         let what = match self {
             SolverKind::Pd => "projective dynamics",
-            SolverKind::PdTol => "projective dynamics to a step size of T m/s",
+            SolverKind::PdTol => {
+                "projective dynamics to an estimated distance of T m/s from the solution"
+            }
             SolverKind::Newton => "Newton",
             SolverKind::NewtonTol => "Newton to a relative gradient of T",
             SolverKind::Cg => "linearised step, CG",
@@ -118,6 +130,8 @@ impl SolverKind {
             SolverKind::Chebyshev => "Chebyshev PD",
             SolverKind::NewtonCg => "inexact Newton, PCG",
             SolverKind::NewtonCgTol => "inexact Newton to a relative gradient of T",
+            SolverKind::NewtonCgAmg => "inexact Newton, PCG with an AMG preconditioner",
+            SolverKind::NewtonCgAmgTol => "inexact Newton with AMG to a relative gradient of T",
             SolverKind::NewtonRelaxed => "Newton with the buckling relaxation",
             SolverKind::NewtonRelaxedTol => "relaxed Newton to a relative gradient of T",
         };
@@ -138,6 +152,7 @@ impl SolverKind {
             | SolverKind::Lbfgs
             | SolverKind::Chebyshev
             | SolverKind::NewtonCg
+            | SolverKind::NewtonCgAmg
             | SolverKind::NewtonRelaxed => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
@@ -145,6 +160,7 @@ impl SolverKind {
             | SolverKind::JacobiTol
             | SolverKind::LbfgsTol
             | SolverKind::NewtonCgTol
+            | SolverKind::NewtonCgAmgTol
             | SolverKind::NewtonRelaxedTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
@@ -169,6 +185,8 @@ impl SolverKind {
             SolverKind::Chebyshev => iterations(&[5, 10, 20, 50, 100]),
             SolverKind::NewtonCg => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonCgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonCgAmg => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonCgAmgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonRelaxed => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonRelaxedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }

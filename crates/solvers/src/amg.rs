@@ -1,0 +1,1179 @@
+//! Smoothed-aggregation algebraic multigrid (docs/solvers.md §2.4) for symmetric positive definite
+//! systems of B × B vertex blocks (B = 3: Newton's clamped Hessian; B = 1: projective dynamics'
+//! M + h²L), used as a preconditioner of [`crate::ConjugateGradient`]: one V-cycle per application.
+//!
+//! Set-up, per level: the vertex graph of the matrix (every stored off-diagonal block is a strong
+//! connection with the default threshold 0, so the aggregates depend on the pattern alone), greedy
+//! standard aggregation, a tentative prolongator T from the near-nullspace (for 3D, the 6
+//! rigid-body modes of [`Amg::rigid_body_modes`]) orthonormalised per aggregate by Gram–Schmidt
+//! with a rank test, the smoothed prolongator P = (I − ω D⁻¹A) T with ω = (4/3)/ρ(D⁻¹A) (D the
+//! block diagonal, ρ estimated by a fixed number of power iterations), and the Galerkin coarse
+//! matrix Pᵀ A P, symmetrised. The patterns of P, Pᵀ and Pᵀ A P are computed once;
+//! [`Amg::refresh`] refills their values from new values of A on the same pattern (no symbolic
+//! work, no allocation), giving the same bits as a fresh set-up with the same near-nullspace. The
+//! coarsest level is factored by [`crate::SparseCholesky`].
+//!
+//! The V-cycle smooths with symmetric block Gauss–Seidel by default (a forward then a backward
+//! sweep, before and after the coarse correction; [`AmgSmoother`]), the sweeps after being the
+//! adjoints of those before, so the preconditioner is symmetric positive definite, as CG needs.
+//! The sweeps are serial; the residual products and the refill's sparse products run row-parallel
+//! on rayon, each row summed in a fixed order, so the result has the same bits whatever the thread
+//! count. Every buffer of the cycle is allocated at set-up.
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use rayon::prelude::*;
+
+use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
+use crate::operator::{LinearOperator, Preconditioner};
+use crate::params::{self, ParamError};
+
+/// The largest vertex block (fine block size, or near-nullspace vectors, which become the coarse
+/// blocks): the diagonal blocks are inverted in fixed-size stack arrays.
+pub const AMG_MAX_BLOCK: usize = 8;
+
+/// The V-cycle's smoother. Both make the cycle a symmetric operator: the sweeps after the coarse
+/// correction are the adjoints of those before, in reverse order.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AmgSmoother {
+    /// Block Gauss–Seidel: forward sweeps before the coarse correction, backward sweeps after
+    /// (half the smoothing work of the symmetric sweeps per cycle, more CG iterations: 12 against 9
+    /// on cloth-80's Hessian, 13 against 10 on cloth-160's; benches/results/amg.md).
+    GaussSeidel,
+    /// Symmetric block Gauss–Seidel: a forward and a backward sweep per sweep, before and after.
+    #[default]
+    SymmetricGaussSeidel,
+}
+
+/// Settings of [`Amg`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AmgParams {
+    /// Strength of connection: blocks i ≠ j are connected when ‖A_ij‖_F ≥ θ √(‖A_ii‖_F ‖A_jj‖_F).
+    /// Default 0: every stored block (the aggregates then depend on the pattern only, which is
+    /// what makes [`Amg::refresh`] equal to a fresh set-up).
+    pub strength_threshold: f64,
+    /// Stop coarsening at or below this many unknowns; the coarsest level is factored. Default 1000.
+    pub max_coarse: usize,
+    /// The most levels, the finest included. Default 10.
+    pub max_levels: usize,
+    /// The smoother of every level but the coarsest.
+    pub smoother: AmgSmoother,
+    /// Smoother sweeps before and after the coarse correction (see [`AmgSmoother`]). Default 1.
+    pub smoother_sweeps: usize,
+    /// ω ρ(D⁻¹A) of the prolongator smoothing. Default 4/3.
+    pub prolongator_damping: f64,
+    /// Power iterations for the spectral radius ρ(D⁻¹A). Default 15.
+    pub spectral_radius_iterations: usize,
+}
+
+impl Default for AmgParams {
+    fn default() -> Self {
+        AmgParams {
+            strength_threshold: 0.0,
+            max_coarse: 1000,
+            max_levels: 10,
+            smoother: AmgSmoother::default(),
+            smoother_sweeps: 1,
+            prolongator_damping: 4.0 / 3.0,
+            spectral_radius_iterations: 15,
+        }
+    }
+}
+
+impl AmgParams {
+    /// Check the fields: threshold finite in [0, 1], `max_coarse` ≥ 1, `max_levels` in 1..=64,
+    /// sweeps in 1..=100, damping in (0, 2), power iterations in 1..=1000.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the first field out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        params::real(
+            "AmgParams::strength_threshold",
+            self.strength_threshold,
+            (0.0..=1.0).contains(&self.strength_threshold),
+            "in [0, 1]",
+        )?;
+        params::at_least("AmgParams::max_coarse", self.max_coarse, 1, "at least 1")?;
+        params::count_in("AmgParams::max_levels", self.max_levels, 1, 64, "in 1..=64")?;
+        params::count_in(
+            "AmgParams::smoother_sweeps",
+            self.smoother_sweeps,
+            1,
+            100,
+            "in 1..=100",
+        )?;
+        params::real(
+            "AmgParams::prolongator_damping",
+            self.prolongator_damping,
+            self.prolongator_damping > 0.0 && self.prolongator_damping < 2.0,
+            "in (0, 2)",
+        )?;
+        params::count_in(
+            "AmgParams::spectral_radius_iterations",
+            self.spectral_radius_iterations,
+            1,
+            1000,
+            "in 1..=1000",
+        )
+    }
+}
+
+/// Why [`Amg`] could not be set up or refreshed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum AmgError {
+    /// The matrix is not square.
+    #[error("the matrix is {rows}×{cols}, not square")]
+    NotSquare {
+        /// Rows.
+        rows: usize,
+        /// Columns.
+        cols: usize,
+    },
+    /// The block size is 0, above [`AMG_MAX_BLOCK`], or does not divide the dimension.
+    #[error("block size {block} does not fit a {dim}×{dim} matrix (it must divide it and be in 1..={AMG_MAX_BLOCK})")]
+    BlockSize {
+        /// The dimension.
+        dim: usize,
+        /// The block size.
+        block: usize,
+    },
+    /// The near-nullspace is not a whole number of columns of the matrix' dimension, has none, or
+    /// more than [`AMG_MAX_BLOCK`].
+    #[error("the near-nullspace has {len} values, not 1 to {AMG_MAX_BLOCK} columns of {dim}")]
+    NearNullspace {
+        /// Values given.
+        len: usize,
+        /// The dimension.
+        dim: usize,
+    },
+    /// A column's row indices are not strictly increasing.
+    #[error("the row indices of column {column} are not sorted and unique")]
+    UnsortedPattern {
+        /// The column.
+        column: usize,
+    },
+    /// The matrix (or the near-nullspace) holds NaN or infinite values.
+    #[error("the matrix or the near-nullspace holds non-finite values")]
+    NonFinite,
+    /// [`Amg::refresh`] got a matrix of another pattern.
+    #[error("the matrix does not have the pattern the hierarchy was built for")]
+    PatternMismatch,
+    /// A diagonal block is not positive definite (the matrix is not SPD).
+    #[error("diagonal block {block} of level {level} is not positive definite")]
+    NotPositiveDefinite {
+        /// The level (0: the given matrix).
+        level: usize,
+        /// The block (vertex or aggregate).
+        block: usize,
+    },
+    /// The coarsest level's factorisation failed.
+    #[error("coarsest level: {0}")]
+    Coarse(#[from] CholeskyError),
+    /// A parameter is out of its range ([`AmgParams::validate`]).
+    #[error(transparent)]
+    InvalidParameter(#[from] ParamError),
+}
+
+/// A square sparse matrix in compressed rows with sorted columns (symmetric matrices: the same
+/// arrays as compressed columns).
+#[derive(Clone, Debug, Default)]
+struct Csr {
+    n_rows: usize,
+    n_cols: usize,
+    ptr: Vec<usize>,
+    col: Vec<usize>,
+    val: Vec<f64>,
+}
+
+impl Csr {
+    fn row(&self, i: usize) -> std::ops::Range<usize> {
+        self.ptr[i]..self.ptr[i + 1]
+    }
+
+    /// y = A x, row-parallel above a size (each row a serial sum: the same bits on any pool).
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let row = |(i, yi): (usize, &mut f64)| {
+            let mut s = 0.0;
+            for e in self.row(i) {
+                s += self.val[e] * x[self.col[e]];
+            }
+            *yi = s;
+        };
+        if y.len() >= 4096 {
+            y.par_iter_mut().enumerate().with_min_len(512).for_each(row);
+        } else {
+            y.iter_mut().enumerate().for_each(row);
+        }
+    }
+
+    /// r = b − A x.
+    fn residual(&self, b: &[f64], x: &[f64], r: &mut [f64]) {
+        let row = |(i, ri): (usize, &mut f64)| {
+            let mut s = b[i];
+            for e in self.row(i) {
+                s -= self.val[e] * x[self.col[e]];
+            }
+            *ri = s;
+        };
+        if r.len() >= 4096 {
+            r.par_iter_mut().enumerate().with_min_len(512).for_each(row);
+        } else {
+            r.iter_mut().enumerate().for_each(row);
+        }
+    }
+}
+
+/// The pattern of C = A B (sorted rows).
+fn product_pattern(a: &Csr, b: &Csr) -> Csr {
+    let mut mark = vec![usize::MAX; b.n_cols];
+    let mut ptr = Vec::with_capacity(a.n_rows + 1);
+    ptr.push(0);
+    let mut col = Vec::new();
+    for i in 0..a.n_rows {
+        let start = col.len();
+        for e in a.row(i) {
+            for f in b.row(a.col[e]) {
+                let j = b.col[f];
+                if mark[j] != i {
+                    mark[j] = i;
+                    col.push(j);
+                }
+            }
+        }
+        col[start..].sort_unstable();
+        ptr.push(col.len());
+    }
+    let nnz = col.len();
+    Csr {
+        n_rows: a.n_rows,
+        n_cols: b.n_cols,
+        ptr,
+        col,
+        val: vec![0.0; nnz],
+    }
+}
+
+/// The values of C = A B into C's pattern (from [`product_pattern`]), rows split into one
+/// contiguous chunk per scratch vector of `dense` (each zeroed, of at least C's column count, and
+/// zeroed again on return), the chunks in parallel. Each row is summed in a fixed order by one
+/// thread, so the bits do not depend on the split.
+fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
+    let rows = a.n_rows;
+    let chunks = dense.len().clamp(1, rows.max(1));
+    let chunk_rows = rows.div_ceil(chunks).max(1);
+    // Split C's values at the chunks' row boundaries.
+    let mut pieces: Vec<(usize, &mut [f64])> = Vec::new();
+    let mut rest: &mut [f64] = &mut c.val;
+    let mut consumed = 0;
+    let mut first = 0;
+    while first < rows {
+        let last = (first + chunk_rows).min(rows);
+        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(c.ptr[last] - consumed);
+        consumed = c.ptr[last];
+        pieces.push((first, piece));
+        rest = tail;
+        first = last;
+    }
+    let (ptr, col) = (&c.ptr, &c.col);
+    let work = |((first, values), dense): ((usize, &mut [f64]), &mut Vec<f64>)| {
+        let last = (first + chunk_rows).min(rows);
+        let base = ptr[first];
+        for i in first..last {
+            for e in a.row(i) {
+                let av = a.val[e];
+                for f in b.row(a.col[e]) {
+                    dense[b.col[f]] += av * b.val[f];
+                }
+            }
+            for e in ptr[i]..ptr[i + 1] {
+                let j = col[e];
+                values[e - base] = dense[j];
+                dense[j] = 0.0;
+            }
+        }
+    };
+    if pieces.len() > 1 {
+        pieces
+            .into_par_iter()
+            .zip(dense.par_iter_mut())
+            .for_each(work);
+    } else {
+        pieces.into_iter().zip(dense.iter_mut()).for_each(work);
+    }
+}
+
+/// The pattern of Aᵀ and, per entry of A, the index of the same entry in Aᵀ.
+fn transpose_pattern(a: &Csr) -> (Csr, Vec<usize>) {
+    let mut count = vec![0usize; a.n_cols + 1];
+    for &j in &a.col {
+        count[j + 1] += 1;
+    }
+    for j in 0..a.n_cols {
+        count[j + 1] += count[j];
+    }
+    let ptr = count.clone();
+    let mut next = count;
+    let mut col = vec![0; a.col.len()];
+    let mut map = vec![0; a.col.len()];
+    for i in 0..a.n_rows {
+        for e in a.row(i) {
+            let j = a.col[e];
+            col[next[j]] = i;
+            map[e] = next[j];
+            next[j] += 1;
+        }
+    }
+    let nnz = col.len();
+    (
+        Csr {
+            n_rows: a.n_cols,
+            n_cols: a.n_rows,
+            ptr,
+            col,
+            val: vec![0.0; nnz],
+        },
+        map,
+    )
+}
+
+/// Invert the symmetric positive definite k × k block `m` (row-major, k ≤ [`AMG_MAX_BLOCK`]) in
+/// place by Gauss–Jordan without pivoting (valid for SPD blocks). `false` if a pivot is not
+/// positive and finite.
+fn invert_spd_block(m: &mut [f64], k: usize) -> bool {
+    let mut inv = [0.0; AMG_MAX_BLOCK * AMG_MAX_BLOCK];
+    let mut a = [0.0; AMG_MAX_BLOCK * AMG_MAX_BLOCK];
+    a[..k * k].copy_from_slice(&m[..k * k]);
+    for i in 0..k {
+        inv[i * k + i] = 1.0;
+    }
+    for p in 0..k {
+        let pivot = a[p * k + p];
+        if !(pivot > 0.0 && pivot.is_finite()) {
+            return false;
+        }
+        let scale = 1.0 / pivot;
+        for c in 0..k {
+            a[p * k + c] *= scale;
+            inv[p * k + c] *= scale;
+        }
+        for r in 0..k {
+            if r != p {
+                let f = a[r * k + p];
+                if f != 0.0 {
+                    for c in 0..k {
+                        a[r * k + c] -= f * a[p * k + c];
+                        inv[r * k + c] -= f * inv[p * k + c];
+                    }
+                }
+            }
+        }
+    }
+    // Symmetrise: the inverse of a symmetric block is symmetric; rounding may differ by an ulp.
+    for r in 0..k {
+        for c in 0..r {
+            let v = 0.5 * (inv[r * k + c] + inv[c * k + r]);
+            inv[r * k + c] = v;
+            inv[c * k + r] = v;
+        }
+    }
+    m[..k * k].copy_from_slice(&inv[..k * k]);
+    m[..k * k].iter().all(|v| v.is_finite())
+}
+
+/// One level: its matrix, its vertex blocks (block b holds unknowns `block_ptr[b]..block_ptr[b+1]`),
+/// the inverted diagonal blocks, and (above the coarsest) the prolongator to it from the next
+/// coarser level with the products that refill the next level's matrix.
+#[derive(Clone, Debug)]
+struct Level {
+    a: Csr,
+    block_ptr: Vec<usize>,
+    /// Per block, the offset of its inverted diagonal block (row-major k × k) in `diag_inv`.
+    diag_offset: Vec<usize>,
+    diag_inv: Vec<f64>,
+    /// Per block, the indices in `a.val` of its diagonal block's entries (row-major k × k;
+    /// usize::MAX where not stored).
+    diag_entries: Vec<usize>,
+    transfer: Option<Transfer>,
+    /// The cycle's vectors: right-hand side, solution, residual.
+    b: Vec<f64>,
+    x: Vec<f64>,
+    r: Vec<f64>,
+}
+
+/// The operators between a level and the next coarser one.
+#[derive(Clone, Debug)]
+struct Transfer {
+    /// The tentative prolongator (fixed).
+    t: Csr,
+    /// A T.
+    at: Csr,
+    /// P = T − ω D⁻¹ A T.
+    p: Csr,
+    /// R = Pᵀ and the map from P's entries to R's.
+    r: Csr,
+    p_to_r: Vec<usize>,
+    /// A P.
+    ap: Csr,
+    /// Per entry of the coarse matrix, the index of its transpose (for exact symmetry).
+    coarse_transpose: Vec<usize>,
+    /// Scratch for the spectral radius: two vectors of the level's size.
+    power: [Vec<f64>; 2],
+}
+
+/// A smoothed-aggregation AMG hierarchy (see the module docs), a [`Preconditioner`] applying one
+/// V-cycle.
+#[derive(Debug)]
+pub struct Amg {
+    params: AmgParams,
+    levels: Vec<Level>,
+    coarse: SparseCholesky,
+    /// Scratch of the product numerics, one per rayon thread (grown when the pool is larger than
+    /// at the last fill), each as long as the largest column count.
+    dense: Vec<Vec<f64>>,
+    /// The largest column count of the products (the scratch length).
+    largest: usize,
+    /// The given matrix' stored entries (its pattern check in [`Amg::refresh`]).
+    fine_nnz: usize,
+}
+
+impl Amg {
+    /// The 6 rigid-body modes of 3D vertices at `positions` (m, x y z per vertex): 3 translations
+    /// and 3 rotations about the centroid, as a 3n × 6 column-major array (the near-nullspace of
+    /// [`Amg::new`] with block size 3). The rotations are in metres (position differences).
+    pub fn rigid_body_modes(positions: &[f64]) -> Vec<f64> {
+        let n = positions.len() / 3;
+        let mut centroid = [0.0; 3];
+        for p in positions.chunks_exact(3) {
+            for a in 0..3 {
+                centroid[a] += p[a];
+            }
+        }
+        for c in &mut centroid {
+            *c /= n.max(1) as f64;
+        }
+        let dim = 3 * n;
+        let mut modes = vec![0.0; 6 * dim];
+        for (v, p) in positions.chunks_exact(3).enumerate() {
+            let (x, y, z) = (p[0] - centroid[0], p[1] - centroid[1], p[2] - centroid[2]);
+            for a in 0..3 {
+                modes[a * dim + 3 * v + a] = 1.0;
+            }
+            // Rotations about x, y, z: ω × r.
+            let rot = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]];
+            for (c, r) in rot.iter().enumerate() {
+                for a in 0..3 {
+                    modes[(3 + c) * dim + 3 * v + a] = r[a];
+                }
+            }
+        }
+        modes
+    }
+
+    /// Build the hierarchy for the symmetric positive definite matrix `a` (full storage, sorted
+    /// columns) of `block_size` × `block_size` vertex blocks, with the near-nullspace
+    /// `near_nullspace` (column-major, dim × k, 1 ≤ k ≤ [`AMG_MAX_BLOCK`]; for 3D vertices
+    /// [`Amg::rigid_body_modes`], for a scalar matrix a column of ones).
+    ///
+    /// # Errors
+    /// [`AmgError`] for a non-square matrix, a block size or near-nullspace that does not fit,
+    /// unsorted columns, non-finite values, a diagonal block that is not positive definite, a
+    /// failed coarsest factorisation, or invalid `params`.
+    pub fn new(
+        a: SparseColMatRef<'_, usize, f64>,
+        block_size: usize,
+        near_nullspace: &[f64],
+        params: AmgParams,
+    ) -> Result<Self, AmgError> {
+        params.validate()?;
+        let n = a.nrows();
+        if a.ncols() != n {
+            return Err(AmgError::NotSquare {
+                rows: n,
+                cols: a.ncols(),
+            });
+        }
+        if block_size == 0 || block_size > AMG_MAX_BLOCK || n % block_size != 0 {
+            return Err(AmgError::BlockSize {
+                dim: n,
+                block: block_size,
+            });
+        }
+        let k = near_nullspace.len().checked_div(n).unwrap_or(0);
+        if n == 0 || k == 0 || k > AMG_MAX_BLOCK || near_nullspace.len() != k * n {
+            return Err(AmgError::NearNullspace {
+                len: near_nullspace.len(),
+                dim: n,
+            });
+        }
+        if near_nullspace.iter().any(|v| !v.is_finite()) {
+            return Err(AmgError::NonFinite);
+        }
+        let fine = csr_of(a)?;
+        let fine_nnz = fine.col.len();
+        let block_ptr: Vec<usize> = (0..=n / block_size).map(|b| b * block_size).collect();
+        let mut levels = vec![Level::new(fine, block_ptr)];
+        let mut nullspace = near_nullspace.to_vec();
+        let mut k = k;
+        // Symbolic set-up, level by level, refilling each coarse matrix to build the next.
+        loop {
+            let depth = levels.len();
+            let level = levels.last_mut().expect("one level at least");
+            let size = level.a.n_rows;
+            if size <= params.max_coarse || depth >= params.max_levels {
+                break;
+            }
+            let aggregates = aggregate(&level.a, &level.block_ptr, params.strength_threshold);
+            let (t, coarse_ptr, coarse_nullspace) =
+                tentative(&aggregates, &level.block_ptr, &nullspace, k);
+            let coarse_size = *coarse_ptr.last().expect("non-empty");
+            if coarse_size >= size || coarse_size == 0 {
+                break;
+            }
+            let at = product_pattern(&level.a, &t);
+            let p = smoothed_pattern(&t, &at, &level.block_ptr);
+            let (r, p_to_r) = transpose_pattern(&p);
+            let ap = product_pattern(&level.a, &p);
+            let coarse_a = product_pattern(&r, &ap);
+            let (_, coarse_transpose) = transpose_pattern(&coarse_a);
+            level.transfer = Some(Transfer {
+                t,
+                at,
+                p,
+                r,
+                p_to_r,
+                ap,
+                coarse_transpose,
+                power: [vec![0.0; size], vec![0.0; size]],
+            });
+            levels.push(Level::new(coarse_a, coarse_ptr));
+            nullspace = coarse_nullspace;
+            k = nullspace.len() / levels.last().expect("pushed").a.n_rows;
+        }
+        let largest = levels.iter().map(|l| l.a.n_cols).max().unwrap_or(0);
+        let last = &levels.last().expect("one level at least").a;
+        let symbolic = SymbolicSparseColMat::new_checked(
+            last.n_rows,
+            last.n_cols,
+            last.ptr.clone(),
+            None,
+            last.col.clone(),
+        );
+        let coarse = SparseCholesky::analyze(
+            symbolic.as_ref(),
+            CholeskyParams {
+                kind: FactorKind::Auto,
+                ..CholeskyParams::default()
+            },
+        )?;
+        let mut amg = Amg {
+            params,
+            levels,
+            coarse,
+            dense: Vec::new(),
+            largest,
+            fine_nnz,
+        };
+        amg.fill()?;
+        Ok(amg)
+    }
+
+    /// Refill every level from new values of the matrix, on the pattern the hierarchy was built for
+    /// (the aggregates and the near-nullspace stay): no symbolic work (the only allocations are a
+    /// list of row chunks per product, and a scratch vector when the rayon pool has grown); the
+    /// same bits as [`Amg::new`] on `a` with the same near-nullspace, whatever the thread count.
+    ///
+    /// # Errors
+    /// [`AmgError::PatternMismatch`] if `a` has another size or pattern, [`AmgError::NonFinite`],
+    /// [`AmgError::NotPositiveDefinite`], [`AmgError::Coarse`]. After an error the hierarchy must
+    /// be refreshed successfully before it is applied.
+    pub fn refresh(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<(), AmgError> {
+        self.params.validate()?;
+        let fine = &mut self.levels[0].a;
+        if a.nrows() != fine.n_rows || a.ncols() != fine.n_cols || a.compute_nnz() != self.fine_nnz
+        {
+            return Err(AmgError::PatternMismatch);
+        }
+        for j in 0..a.ncols() {
+            let rows = a.row_idx_of_col_raw(j);
+            let range = fine.row(j);
+            if rows != &fine.col[range.clone()] {
+                return Err(AmgError::PatternMismatch);
+            }
+            fine.val[range].copy_from_slice(a.val_of_col(j));
+        }
+        self.fill()
+    }
+
+    /// The number of levels, the finest included.
+    pub fn level_count(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// The unknowns of each level, finest first.
+    pub fn level_sizes(&self) -> Vec<usize> {
+        self.levels.iter().map(|l| l.a.n_rows).collect()
+    }
+
+    /// Operator complexity: stored entries of all levels' matrices over the finest's.
+    pub fn operator_complexity(&self) -> f64 {
+        let total: usize = self.levels.iter().map(|l| l.a.col.len()).sum();
+        total as f64 / self.levels[0].a.col.len().max(1) as f64
+    }
+
+    /// The numeric set-up from the finest matrix' values down.
+    fn fill(&mut self) -> Result<(), AmgError> {
+        if self.levels[0].a.val.iter().any(|v| !v.is_finite()) {
+            return Err(AmgError::NonFinite);
+        }
+        let threads = rayon::current_num_threads().max(1);
+        while self.dense.len() < threads {
+            self.dense.push(vec![0.0; self.largest]);
+        }
+        let dense = &mut self.dense[..threads];
+        let omega_scale = self.params.prolongator_damping;
+        let iterations = self.params.spectral_radius_iterations;
+        for depth in 0..self.levels.len() {
+            let (upper, lower) = self.levels.split_at_mut(depth + 1);
+            let level = &mut upper[depth];
+            level.invert_diagonal(depth)?;
+            let Some(tr) = level.transfer.as_mut() else {
+                continue;
+            };
+            let mut power = std::mem::take(&mut tr.power);
+            let rho = spectral_radius(level, &mut power, iterations);
+            let omega = omega_scale / rho;
+            let tr = level.transfer.as_mut().expect("checked");
+            tr.power = power;
+            product_values(&level.a, &tr.t, &mut tr.at, dense);
+            smooth_values(
+                tr,
+                &level.block_ptr,
+                &level.diag_offset,
+                &level.diag_inv,
+                omega,
+            );
+            for (e, &m) in tr.p_to_r.iter().enumerate() {
+                tr.r.val[m] = tr.p.val[e];
+            }
+            product_values(&level.a, &tr.p, &mut tr.ap, dense);
+            let coarse = &mut lower[0].a;
+            product_values(&tr.r, &tr.ap, coarse, dense);
+            for (e, &t) in tr.coarse_transpose.iter().enumerate() {
+                if e < t {
+                    let v = 0.5 * (coarse.val[e] + coarse.val[t]);
+                    coarse.val[e] = v;
+                    coarse.val[t] = v;
+                }
+            }
+        }
+        let last = &self.levels.last().expect("one level").a;
+        let view = SparseColMatRef::new(
+            faer::sparse::SymbolicSparseColMatRef::new_checked(
+                last.n_rows,
+                last.n_cols,
+                &last.ptr,
+                None,
+                &last.col,
+            ),
+            &last.val,
+        );
+        self.coarse.factorize(view)?;
+        Ok(())
+    }
+
+    /// One V-cycle: z ≈ A⁻¹ r.
+    fn vcycle(&mut self, r: &[f64], z: &mut [f64]) {
+        let sweeps = self.params.smoother_sweeps;
+        let symmetric_each_side = self.params.smoother == AmgSmoother::SymmetricGaussSeidel;
+        self.levels[0].b.copy_from_slice(r);
+        let depth = self.levels.len();
+        for l in 0..depth - 1 {
+            let (upper, lower) = self.levels.split_at_mut(l + 1);
+            let level = &mut upper[l];
+            level.x.fill(0.0);
+            for _ in 0..sweeps {
+                level.sweep(true);
+                if symmetric_each_side {
+                    level.sweep(false);
+                }
+            }
+            level.a.residual(&level.b, &level.x, &mut level.r);
+            let tr = level.transfer.as_ref().expect("above the coarsest");
+            tr.r.apply(&level.r, &mut lower[0].b);
+        }
+        {
+            let last = self.levels.last_mut().expect("one level");
+            last.x.copy_from_slice(&last.b);
+            self.coarse.solve_slice(&mut last.x);
+        }
+        for l in (0..depth - 1).rev() {
+            let (upper, lower) = self.levels.split_at_mut(l + 1);
+            let level = &mut upper[l];
+            let tr = level.transfer.as_ref().expect("above the coarsest");
+            tr.p.apply(&lower[0].x, &mut level.r);
+            for (x, c) in level.x.iter_mut().zip(&level.r) {
+                *x += c;
+            }
+            for _ in 0..sweeps {
+                if symmetric_each_side {
+                    level.sweep(true);
+                }
+                level.sweep(false);
+            }
+        }
+        z.copy_from_slice(&self.levels[0].x);
+    }
+}
+
+impl Preconditioner for Amg {
+    /// One V-cycle.
+    ///
+    /// # Panics
+    /// If `r` or `z` is not of the matrix' dimension.
+    #[track_caller]
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        let n = self.levels[0].a.n_rows;
+        assert!(r.len() == n && z.len() == n, "vector lengths");
+        self.vcycle(r, z);
+    }
+}
+
+/// The level's matrix as a linear operator (for tests and measurements on the same data).
+impl LinearOperator for Amg {
+    fn dim(&self) -> usize {
+        self.levels[0].a.n_rows
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.levels[0].a.apply(x, y)
+    }
+}
+
+impl Level {
+    fn new(a: Csr, block_ptr: Vec<usize>) -> Self {
+        let blocks = block_ptr.len() - 1;
+        let mut diag_offset = Vec::with_capacity(blocks + 1);
+        let mut total = 0;
+        for b in 0..blocks {
+            diag_offset.push(total);
+            let k = block_ptr[b + 1] - block_ptr[b];
+            total += k * k;
+        }
+        diag_offset.push(total);
+        let mut diag_entries = vec![usize::MAX; total];
+        for b in 0..blocks {
+            let (lo, hi) = (block_ptr[b], block_ptr[b + 1]);
+            let k = hi - lo;
+            for i in lo..hi {
+                for e in a.row(i) {
+                    let j = a.col[e];
+                    if (lo..hi).contains(&j) {
+                        diag_entries[diag_offset[b] + (i - lo) * k + (j - lo)] = e;
+                    }
+                }
+            }
+        }
+        let n = a.n_rows;
+        Level {
+            a,
+            block_ptr,
+            diag_offset,
+            diag_inv: vec![0.0; total],
+            diag_entries,
+            transfer: None,
+            b: vec![0.0; n],
+            x: vec![0.0; n],
+            r: vec![0.0; n],
+        }
+    }
+
+    fn invert_diagonal(&mut self, level: usize) -> Result<(), AmgError> {
+        for b in 0..self.block_ptr.len() - 1 {
+            let k = self.block_ptr[b + 1] - self.block_ptr[b];
+            let o = self.diag_offset[b];
+            let block = &mut self.diag_inv[o..o + k * k];
+            for (v, &e) in block.iter_mut().zip(&self.diag_entries[o..o + k * k]) {
+                *v = if e == usize::MAX { 0.0 } else { self.a.val[e] };
+            }
+            if !invert_spd_block(block, k) {
+                return Err(AmgError::NotPositiveDefinite { level, block: b });
+            }
+        }
+        Ok(())
+    }
+
+    /// One block Gauss–Seidel sweep on A x = b, forward or backward over the blocks.
+    fn sweep(&mut self, forward: bool) {
+        let blocks = self.block_ptr.len() - 1;
+        let mut s = [0.0; AMG_MAX_BLOCK];
+        for step in 0..blocks {
+            let b = if forward { step } else { blocks - 1 - step };
+            let (lo, hi) = (self.block_ptr[b], self.block_ptr[b + 1]);
+            let k = hi - lo;
+            for i in lo..hi {
+                let mut v = self.b[i];
+                for e in self.a.row(i) {
+                    v -= self.a.val[e] * self.x[self.a.col[e]];
+                }
+                s[i - lo] = v;
+            }
+            let inv = &self.diag_inv[self.diag_offset[b]..self.diag_offset[b] + k * k];
+            for i in 0..k {
+                let mut d = 0.0;
+                for j in 0..k {
+                    d += inv[i * k + j] * s[j];
+                }
+                self.x[lo + i] += d;
+            }
+        }
+    }
+}
+
+/// ρ(D⁻¹A) of a level by power iteration from a fixed start, as the Rayleigh quotient
+/// xᵀAx / xᵀDx of the last iterate (D⁻¹A is similar to a symmetric matrix; the quotient converges
+/// from below). `power` holds two scratch vectors of the level's size.
+fn spectral_radius(level: &Level, power: &mut [Vec<f64>; 2], iterations: usize) -> f64 {
+    let [x, y] = power;
+    // A fixed, sign-varying start (a hash of the index), so that no eigenvector is missed.
+    for (i, v) in x.iter_mut().enumerate() {
+        let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+        *v = (h as f64) / (1u64 << 24) as f64 - 0.5;
+    }
+    let a = &level.a;
+    let mut rho = 1.0;
+    for _ in 0..iterations {
+        a.apply(x, y);
+        let xax = crate::operator::dot(x, y);
+        let mut xdx = 0.0;
+        for b in 0..level.block_ptr.len() - 1 {
+            let (lo, hi) = (level.block_ptr[b], level.block_ptr[b + 1]);
+            let k = hi - lo;
+            let o = level.diag_offset[b];
+            let inv = &level.diag_inv[o..o + k * k];
+            let entries = &level.diag_entries[o..o + k * k];
+            let mut t = [0.0; AMG_MAX_BLOCK];
+            for i in 0..k {
+                for j in 0..k {
+                    t[i] += inv[i * k + j] * y[lo + j];
+                    let e = entries[i * k + j];
+                    if e != usize::MAX {
+                        xdx += x[lo + i] * a.val[e] * x[lo + j];
+                    }
+                }
+            }
+            y[lo..hi].copy_from_slice(&t[..k]);
+        }
+        if xdx > 0.0 && xax.is_finite() {
+            rho = xax / xdx;
+        }
+        let norm = crate::operator::dot(y, y).sqrt();
+        if !(norm > 0.0 && norm.is_finite()) {
+            break;
+        }
+        for (xi, yi) in x.iter_mut().zip(y.iter()) {
+            *xi = yi / norm;
+        }
+    }
+    rho.max(f64::MIN_POSITIVE)
+}
+
+/// Copy a faer CSC matrix (symmetric: its CSC arrays are its CSR arrays) into a [`Csr`], checking
+/// sorted columns and finite values.
+fn csr_of(a: SparseColMatRef<'_, usize, f64>) -> Result<Csr, AmgError> {
+    let n = a.nrows();
+    let mut ptr = Vec::with_capacity(n + 1);
+    ptr.push(0);
+    let mut col = Vec::with_capacity(a.compute_nnz());
+    let mut val = Vec::with_capacity(a.compute_nnz());
+    for j in 0..a.ncols() {
+        let rows = a.row_idx_of_col_raw(j);
+        if rows.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(AmgError::UnsortedPattern { column: j });
+        }
+        col.extend_from_slice(rows);
+        val.extend_from_slice(a.val_of_col(j));
+        ptr.push(col.len());
+    }
+    if val.iter().any(|v| !v.is_finite()) {
+        return Err(AmgError::NonFinite);
+    }
+    Ok(Csr {
+        n_rows: n,
+        n_cols: n,
+        ptr,
+        col,
+        val,
+    })
+}
+
+/// Greedy standard aggregation of the blocks (pyamg's three passes): 1. a block whose strong
+/// neighbours are all free starts an aggregate with them; 2. a left-over block joins the
+/// aggregate of its first aggregated strong neighbour; 3. any block still left starts an aggregate
+/// with its free strong neighbours. Returns the aggregate of each block.
+fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
+    let blocks = block_ptr.len() - 1;
+    let mut block_of = vec![0usize; a.n_rows];
+    for b in 0..blocks {
+        block_of[block_ptr[b]..block_ptr[b + 1]].fill(b);
+    }
+    // Block graph with squared Frobenius norms.
+    let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); blocks];
+    let mut diag = vec![0.0; blocks];
+    // Per block, its slot in the current block's neighbour list (valid when `owner` is b).
+    let mut slot = vec![0usize; blocks];
+    let mut owner = vec![usize::MAX; blocks];
+    for b in 0..blocks {
+        let list = &mut neighbours[b];
+        for i in block_ptr[b]..block_ptr[b + 1] {
+            for e in a.row(i) {
+                let c = block_of[a.col[e]];
+                let v = a.val[e] * a.val[e];
+                if c == b {
+                    diag[b] += v;
+                } else if owner[c] == b {
+                    list[slot[c]].1 += v;
+                } else {
+                    owner[c] = b;
+                    slot[c] = list.len();
+                    list.push((c, v));
+                }
+            }
+        }
+        list.sort_unstable_by_key(|&(n, _)| n);
+    }
+    let strong: Vec<Vec<usize>> = (0..blocks)
+        .map(|b| {
+            neighbours[b]
+                .iter()
+                .filter(|&&(c, v)| {
+                    theta == 0.0 || v.sqrt() >= theta * (diag[b] * diag[c]).sqrt().sqrt()
+                })
+                .map(|&(c, _)| c)
+                .collect()
+        })
+        .collect();
+    const FREE: usize = usize::MAX;
+    let mut agg = vec![FREE; blocks];
+    let mut count = 0;
+    for b in 0..blocks {
+        if agg[b] == FREE && strong[b].iter().all(|&c| agg[c] == FREE) {
+            agg[b] = count;
+            for &c in &strong[b] {
+                agg[c] = count;
+            }
+            count += 1;
+        }
+    }
+    let first_pass = agg.clone();
+    for b in 0..blocks {
+        if agg[b] == FREE {
+            if let Some(&c) = strong[b].iter().find(|&&c| first_pass[c] != FREE) {
+                agg[b] = first_pass[c];
+            }
+        }
+    }
+    for b in 0..blocks {
+        if agg[b] == FREE {
+            agg[b] = count;
+            for &c in &strong[b] {
+                if agg[c] == FREE {
+                    agg[c] = count;
+                }
+            }
+            count += 1;
+        }
+    }
+    agg
+}
+
+/// The tentative prolongator: per aggregate, the near-nullspace rows of its unknowns
+/// orthonormalised by modified Gram–Schmidt, dropping columns that are (numerically) dependent on
+/// the earlier ones; the kept columns become the aggregate's coarse unknowns, and the Gram–Schmidt
+/// coefficients (R of B_agg = Q R, the kept rows) its coarse near-nullspace. Returns T, the coarse
+/// block pointer and the coarse near-nullspace (column-major, coarse size × k).
+fn tentative(
+    aggregates: &[usize],
+    block_ptr: &[usize],
+    nullspace: &[f64],
+    k: usize,
+) -> (Csr, Vec<usize>, Vec<f64>) {
+    let n = *block_ptr.last().expect("non-empty");
+    let count = aggregates.iter().map(|&a| a + 1).max().unwrap_or(0);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
+    for (b, &a) in aggregates.iter().enumerate() {
+        members[a].push(b);
+    }
+    // Per fine unknown: (coarse column, value) pairs.
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    let mut coarse_ptr = vec![0usize];
+    let mut coarse_r: Vec<Vec<f64>> = Vec::new(); // per coarse unknown, its row of R (k values)
+    for agg in &members {
+        let dofs: Vec<usize> = agg
+            .iter()
+            .flat_map(|&b| block_ptr[b]..block_ptr[b + 1])
+            .collect();
+        let m = dofs.len();
+        let mut q: Vec<Vec<f64>> = Vec::new();
+        let mut r_rows: Vec<Vec<f64>> = Vec::new();
+        for c in 0..k {
+            let mut v: Vec<f64> = dofs.iter().map(|&d| nullspace[c * n + d]).collect();
+            let original = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let mut coefficients = vec![0.0; q.len()];
+            for (j, qj) in q.iter().enumerate() {
+                let proj: f64 = qj.iter().zip(&v).map(|(a, b)| a * b).sum();
+                coefficients[j] = proj;
+                for (vi, qi) in v.iter_mut().zip(qj) {
+                    *vi -= proj * qi;
+                }
+            }
+            let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            for (j, &p) in coefficients.iter().enumerate() {
+                r_rows[j][c] = p;
+            }
+            if q.len() < m && norm > 1e-10 * original && norm > 0.0 {
+                for vi in &mut v {
+                    *vi /= norm;
+                }
+                let mut row = vec![0.0; k];
+                row[c] = norm;
+                r_rows.push(row);
+                q.push(v);
+            }
+        }
+        let base = *coarse_ptr.last().expect("non-empty");
+        for (j, qj) in q.iter().enumerate() {
+            for (i, &d) in dofs.iter().enumerate() {
+                if qj[i] != 0.0 {
+                    rows[d].push((base + j, qj[i]));
+                }
+            }
+        }
+        coarse_ptr.push(base + q.len());
+        coarse_r.extend(r_rows);
+    }
+    let coarse_n = *coarse_ptr.last().expect("non-empty");
+    let mut ptr = vec![0];
+    let mut col = Vec::new();
+    let mut val = Vec::new();
+    for row in &mut rows {
+        row.sort_unstable_by_key(|&(c, _)| c);
+        for &(c, v) in row.iter() {
+            col.push(c);
+            val.push(v);
+        }
+        ptr.push(col.len());
+    }
+    let mut coarse_nullspace = vec![0.0; coarse_n * k];
+    for (i, row) in coarse_r.iter().enumerate() {
+        for c in 0..k {
+            coarse_nullspace[c * coarse_n + i] = row[c];
+        }
+    }
+    (
+        Csr {
+            n_rows: n,
+            n_cols: coarse_n,
+            ptr,
+            col,
+            val,
+        },
+        coarse_ptr,
+        coarse_nullspace,
+    )
+}
+
+/// The pattern of P = T − ω D⁻¹ A T: per block, the union of its rows' patterns in T and A T (D⁻¹
+/// mixes the rows of a block).
+fn smoothed_pattern(t: &Csr, at: &Csr, block_ptr: &[usize]) -> Csr {
+    let mut mark = vec![usize::MAX; t.n_cols];
+    let mut ptr = vec![0];
+    let mut col = Vec::new();
+    let mut block_cols = Vec::new();
+    for b in 0..block_ptr.len() - 1 {
+        block_cols.clear();
+        for i in block_ptr[b]..block_ptr[b + 1] {
+            for (m, e) in [(t, t.row(i)), (at, at.row(i))] {
+                for e in e {
+                    let j = m.col[e];
+                    if mark[j] != b {
+                        mark[j] = b;
+                        block_cols.push(j);
+                    }
+                }
+            }
+        }
+        block_cols.sort_unstable();
+        for _ in block_ptr[b]..block_ptr[b + 1] {
+            col.extend_from_slice(&block_cols);
+            ptr.push(col.len());
+        }
+    }
+    let nnz = col.len();
+    Csr {
+        n_rows: t.n_rows,
+        n_cols: t.n_cols,
+        ptr,
+        col,
+        val: vec![0.0; nnz],
+    }
+}
+
+/// P's values: T − ω D⁻¹ (A T), per block (every row of a block has the block's pattern).
+fn smooth_values(
+    tr: &mut Transfer,
+    block_ptr: &[usize],
+    diag_offset: &[usize],
+    diag_inv: &[f64],
+    omega: f64,
+) {
+    let Transfer { t, at, p, .. } = tr;
+    for b in 0..block_ptr.len() - 1 {
+        let (lo, hi) = (block_ptr[b], block_ptr[b + 1]);
+        let k = hi - lo;
+        let inv = &diag_inv[diag_offset[b]..diag_offset[b] + k * k];
+        for i in lo..hi {
+            let row = p.ptr[i]..p.ptr[i + 1];
+            p.val[row.clone()].fill(0.0);
+            // T's row i, then −ω Σ_s Dinv[i, s] (A T)_s, merged into P's sorted row.
+            let cols = &p.col[row.clone()];
+            let add = |m: &Csr, r: usize, scale: f64, vals: &mut [f64]| {
+                let mut pos = 0;
+                for e in m.row(r) {
+                    let j = m.col[e];
+                    while cols[pos] != j {
+                        pos += 1;
+                    }
+                    vals[pos] += scale * m.val[e];
+                }
+            };
+            let vals = &mut p.val[row];
+            add(t, i, 1.0, vals);
+            for s in lo..hi {
+                let w = inv[(i - lo) * k + (s - lo)];
+                if w != 0.0 {
+                    add(at, s, -omega * w, vals);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_inverse_of_an_spd_block() {
+        let mut m = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let a = m;
+        assert!(invert_spd_block(&mut m, 3));
+        for i in 0..3 {
+            for j in 0..3 {
+                let v: f64 = (0..3).map(|l| a[i * 3 + l] * m[l * 3 + j]).sum();
+                assert!((v - if i == j { 1.0 } else { 0.0 }).abs() < 1e-14);
+            }
+        }
+        let mut bad = [1.0, 2.0, 2.0, 1.0];
+        assert!(!invert_spd_block(&mut bad, 2));
+    }
+}
