@@ -238,14 +238,18 @@ pub struct SolverSpec {
 }
 
 impl SolverSpec {
-    /// The specs `hooke bench` uses when none is given: PD by iteration count, Newton by iteration
-    /// count and by tolerance, the linearised integrator with CG by tolerance, with Jacobi by
-    /// iteration count, and with its default solve.
+    /// The specs `hooke bench` uses when none is given, so that the table shows the whole front
+    /// from a rough step to Newton's answer: PD, Chebyshev PD and L-BFGS by iteration count,
+    /// Newton by iteration count and by tolerance, Newton-CG with AMG by tolerance, the linearised
+    /// integrator with CG by tolerance, with Jacobi by iteration count, and with its default solve.
     pub fn defaults() -> Vec<SolverSpec> {
         [
             SolverKind::Pd,
+            SolverKind::Chebyshev,
+            SolverKind::Lbfgs,
             SolverKind::Newton,
             SolverKind::NewtonTol,
+            SolverKind::NewtonCgAmgTol,
             SolverKind::CgTol,
             SolverKind::Jacobi,
             SolverKind::LinearizedCg,

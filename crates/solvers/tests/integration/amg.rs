@@ -10,9 +10,7 @@ use hooke_solvers::{
     SparseCholesky, StopReason, Symmetric,
 };
 
-mod common;
-#[allow(dead_code)] // the Newton helpers serve other test crates
-mod waved_step;
+use crate::waved_step;
 use waved_step::{clamped, newton_solution, objective_error, step};
 
 /// The clamped Hessian at y of a waved step on `mesh` (compressed and stretched springs: an SPD

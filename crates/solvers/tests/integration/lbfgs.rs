@@ -6,8 +6,7 @@ use hooke_solvers::Convergence;
 use hooke_solvers::{Lbfgs, LbfgsParams, NewtonProblem, StopReason};
 use proptest::prelude::*;
 
-mod common;
-mod waved_step;
+use crate::waved_step;
 use waved_step::{clamped, newton_solution, objective_error, step};
 
 fn reaches_newton(mesh: &SpringMesh<3>, pinned: &[u32], amplitude: f64) {

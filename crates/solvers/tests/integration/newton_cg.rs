@@ -6,8 +6,7 @@ use hooke_solvers::Convergence;
 use hooke_solvers::{NewtonCg, NewtonCgParams, NewtonProblem, StopReason};
 use proptest::prelude::*;
 
-mod common;
-mod waved_step;
+use crate::waved_step;
 use waved_step::{clamped, newton_solution, objective_error, step};
 
 fn solve(

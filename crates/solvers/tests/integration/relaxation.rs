@@ -12,7 +12,7 @@ use hooke_solvers::{
 use nalgebra::Vector3;
 use proptest::prelude::*;
 
-mod common;
+use crate::common;
 use common::inertial_target;
 
 type V = Vector3<f64>;
@@ -292,7 +292,7 @@ fn focused_sweeps_relax_the_hottest_vertex_and_its_ring() {
 
 /// Newton with the relaxation preset on a crushed start: converges, blends (the exact Hessian is
 /// indefinite there), and counts its relaxation sweeps; with relaxation off (the default) it counts
-/// none. (A problem that cannot relax counts none either: tests/newton.rs.)
+/// none. (A problem that cannot relax counts none either: the newton module.)
 #[test]
 fn newton_reports_its_blend_and_relaxation() {
     let Case {

@@ -8,7 +8,7 @@ use hooke_sph::{scenes, Fluid};
 
 /// The experiment of Koshizuka & Oka (1996), Z against T (data/sph/dam_break_koshizuka_oka.csv).
 fn experiment() -> Vec<(f64, f64)> {
-    let text = include_str!("../../../data/sph/dam_break_koshizuka_oka.csv");
+    let text = include_str!("../../../../data/sph/dam_break_koshizuka_oka.csv");
     text.lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with('T'))
         .map(|l| {
@@ -139,10 +139,10 @@ fn dam_break_front_follows_the_experiment_and_converges_in_dx() {
     // for CI) is this code's too. If the physics changes on purpose, re-run the study with the
     // commands in benches/results/sph-fronts.md.
     let study_02 = recorded(include_str!(
-        "../../../benches/results/sph-front-dx0.02.csv"
+        "../../../../benches/results/sph-front-dx0.02.csv"
     ));
     let study_01 = recorded(include_str!(
-        "../../../benches/results/sph-front-dx0.01.csv"
+        "../../../../benches/results/sph-front-dx0.01.csv"
     ));
     assert_eq!(study_02.len(), fine.len());
     for (&(t, z), &(_, recorded)) in fine.iter().zip(&study_02) {

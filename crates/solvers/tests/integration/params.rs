@@ -16,7 +16,7 @@ use hooke_solvers::{
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
 
-mod common;
+use crate::common;
 use common::inertial_target;
 
 /// The same refusal (NaN values compare unequal, so compare what the error says).
