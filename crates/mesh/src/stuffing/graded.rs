@@ -11,22 +11,33 @@
 //!   its diagonal through the face's centre, and both pyramids over it (apex the big cube's centre,
 //!   and the small cube's) into two half-pyramids.
 //!
-//! A coarse cube is split while the surface comes within h/2 + 0.35671·h of it (`fine_margin`,
-//! which derives the figure: h/2 is how far the half-pyramids reach into a finest cube, 0.35671·h
-//! how far warping moves a vertex), decided by its box's distance to the surface. So the surface
-//! crosses finest cubes only (up to the coarse cubes' edge), and every tetrahedron that meets it,
-//! and every vertex that warping moves, belongs to BCC tetrahedra of the uniform lattice: the
-//! uniform lattice's cut points, warping (same thresholds) and stencils apply to them unchanged,
-//! and Table 1's proof covers them as it covers the uniform mesh. The coarser tetrahedra are
-//! entirely inside (kept whole) or outside (dropped). That is checked, not assumed: a coarse
-//! tetrahedron with vertices on both sides, or a warped vertex, is a typed error. The paper
-//! (Section 5) also cuts and warps the transition tetrahedra (bisected BCC, half-pyramids), so that
-//! only the cubes the surface crosses need be finest; this mesher does not (no harness here bounds
-//! the stencils on those shapes), which costs the h/2 + 0.357h band. The paper states that Table
-//! 1's bounds hold for graded meshes too, except for two entries of other rows (which deteriorate
-//! to 158.1918° and 147.0470°); for the row in use the bounds are [`MIN_DIHEDRAL_BOUND_DEG`] and
-//! [`MAX_DIHEDRAL_BOUND_DEG`], and the coarse tetrahedra's fixed shapes lie well inside them (BCC
-//! 60°–90°, bisected BCC 45°–90°, half-pyramids 45°–90° and 45°–120°).
+//! Which cubes are finest (docs/mesher.md, "The graded variant"):
+//!
+//! 1. a coarse cube is split while its box comes within [`FINE_MARGIN`]·h of the surface, so the
+//!    finest cubes are the 2h blocks the surface crosses, and every coarse leaf's closed box lies
+//!    wholly on one side;
+//! 2. the paper's rule keeps the transition tetrahedra uncut ([`enforce_uncut_transitions`]): a
+//!    coarse leaf is split where a finest cube next to it has its centre on the other side;
+//! 3. warping, the uniform mesher's, moves vertices of transition tetrahedra too (those on a
+//!    coarse leaf's faces, and the centres of finest cubes next to one). Most shapes stay well
+//!    inside the bounds whatever the warps; the half-pyramid over a finest cube's face, apex that
+//!    cube's centre, does not (down to 8.4181° and up to 168.6219° at the corners of its
+//!    configuration space, found by the tests' harness). So every transition tetrahedron kept with
+//!    a warped vertex is checked against [`MIN_DIHEDRAL_BOUND_DEG`]–[`MAX_DIHEDRAL_BOUND_DEG`]
+//!    (and for orientation), and where one fails the leaf that made it is split and the grid made
+//!    again (a split changes no sign, cut point or warp: the warped vertex then has BCC tetrahedra
+//!    of the uniform lattice around it, which Table 1's proof covers).
+//!
+//! Only the BCC tetrahedra between finest cubes are cut, by the uniform mesher's cut points and
+//! stencils; the cut points, warping and so the boundary are the uniform mesher's at the same
+//! spacing. Every output tetrahedron is within the row's bounds: the stencils' output by Table 1's
+//! proof (the tests' harness reproduces it on graded grids), the transition tetrahedra by the
+//! check above (unwarped, their fixed shapes are within 45°–120°), the all-zero ones by the same
+//! filter as in the uniform mesher. A transition tetrahedron with vertices on both sides is a
+//! typed error (the rule excludes it). The paper states that Table 1's bounds hold for graded
+//! meshes too, except two entries of other rows (which deteriorate to 158.1918° and 147.0470°); the
+//! harness finds the half-pyramids above outside the safe row's bounds when warped freely, which
+//! is why the check exists.
 //!
 //! [`MIN_DIHEDRAL_BOUND_DEG`]: super::MIN_DIHEDRAL_BOUND_DEG
 //! [`MAX_DIHEDRAL_BOUND_DEG`]: super::MAX_DIHEDRAL_BOUND_DEG
@@ -39,8 +50,8 @@ use rayon::prelude::*;
 use super::lattice::BccLattice;
 use super::{
     add_all_zero, assemble, edge_key, final_position, quality_report, reference_position, stencils,
-    warp, within_bounds, Broken, ClosedSurface, Cut, Stuffed, Stuffing, StuffingError, StuffingOptions, ALPHA,
-    MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG, PADDING,
+    warp, within_bounds, Broken, ClosedSurface, Cut, Stuffed, Stuffing, StuffingError,
+    StuffingOptions, ALPHA, MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG, PADDING,
 };
 use crate::{tetrahedron_signed_volume, Vec3};
 
@@ -176,8 +187,8 @@ impl Octree {
                     let octree = &*self;
                     (0..27).filter(|&n| n != 13).filter_map(move |n| {
                         let d = [n % 3 - 1, (n / 3) % 3 - 1, n / 9 - 1];
-                        let probe =
-                            [0, 1, 2].map(|a| c[a] as f64 + 0.5 * s + d[a] as f64 * (0.5 * s + 0.25));
+                        let probe = [0, 1, 2]
+                            .map(|a| c[a] as f64 + 0.5 * s + d[a] as f64 * (0.5 * s + 0.25));
                         octree
                             .leaf_at(probe)
                             .filter(|other| other.0 > l + 1)
@@ -215,8 +226,11 @@ impl Octree {
 
 /// Fill a closed surface with tetrahedra by graded isosurface stuffing: finest (spacing
 /// `options.spacing`, as [`tetrahedralize`](super::tetrahedralize)) where the surface crosses the
-/// grid, coarser inside. Near the surface the cut points, warping and stencils are the uniform
-/// mesher's (docs/mesher.md, "The graded variant").
+/// grid, coarser inside. The cut points, warping and stencils are the uniform mesher's, so the
+/// boundary is the uniform mesh's at the same spacing, and every dihedral angle is within the same
+/// bounds ([`MIN_DIHEDRAL_BOUND_DEG`](super::MIN_DIHEDRAL_BOUND_DEG),
+/// [`MAX_DIHEDRAL_BOUND_DEG`](super::MAX_DIHEDRAL_BOUND_DEG); docs/mesher.md, "The graded
+/// variant").
 ///
 /// # Errors
 /// As [`tetrahedralize`](super::tetrahedralize); [`StuffingError::BrokenInvariant`] also if a
@@ -324,28 +338,8 @@ pub fn tetrahedralize_graded(
         // A transition tetrahedron kept whole with a warped vertex is held to the bounds; where it
         // falls outside (only the half-pyramids over a finest cube's face can: docs/mesher.md), the
         // leaf that made it is split and the grid made again.
-        let position = |id: u32| final_position(&lattice, &cuts, &filled.warped, id);
-        let mut split: Vec<Cube> = coarse
-            .par_iter()
-            .zip(&owners)
-            .filter(|(t, _)| {
-                let s = t.map(|v| signs[v as usize]);
-                s.iter().any(|&x| x > 0) && s.iter().any(|&x| x == 0) && {
-                    let [a, b, c, d] = t.map(position);
-                    let [ra, rb, rc, rd] = t.map(|v| lattice.position(v));
-                    let reference = tetrahedron_signed_volume(&ra, &rb, &rc, &rd);
-                    !(tetrahedron_signed_volume(&a, &b, &c, &d) * reference.signum() > 0.0
-                        && within_bounds(
-                            &a,
-                            &b,
-                            &c,
-                            &d,
-                            (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG),
-                        ))
-                }
-            })
-            .map(|(_, &owner)| owner)
-            .collect();
+        let mut split =
+            failing_transitions(&lattice, &coarse, &owners, &signs, &cuts, &filled.warped);
         if split.is_empty() {
             break (cuts, filled, signs);
         }
@@ -374,12 +368,53 @@ pub fn tetrahedralize_graded(
         h,
     )?;
     let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
-    let mesh = assemble(&tetrahedra, lattice.vertex_count() + cuts.len(), position, h)?;
+    let mesh = assemble(
+        &tetrahedra,
+        lattice.vertex_count() + cuts.len(),
+        position,
+        h,
+    )?;
     let seconds = start.elapsed().as_secs_f64();
     let mut report = quality_report(&mesh, None);
     report.surface_volume = Some(surface.enclosed_volume());
     report.seconds = seconds;
     Ok(Stuffed { mesh, report })
+}
+
+/// The leaves to split so that no transition tetrahedron kept whole with a warped vertex falls
+/// outside the bounds or is inverted: for each such tetrahedron of `coarse` (signs after warping;
+/// kept: an inside vertex), the leaf that made it (`owners`). Only the half-pyramids over a finest
+/// cube's face (apex its centre) can fail (docs/mesher.md, "The graded variant").
+fn failing_transitions(
+    lattice: &BccLattice,
+    coarse: &[[u32; 4]],
+    owners: &[Cube],
+    signs: &[i8],
+    cuts: &[Cut],
+    warped: &HashMap<u32, Vec3>,
+) -> Vec<Cube> {
+    let position = |id: u32| final_position(lattice, cuts, warped, id);
+    coarse
+        .par_iter()
+        .zip(owners)
+        .filter(|(t, _)| {
+            let s = t.map(|v| signs[v as usize]);
+            s.iter().any(|&x| x > 0) && s.iter().any(|&x| x == 0) && {
+                let [a, b, c, d] = t.map(position);
+                let [ra, rb, rc, rd] = t.map(|v| lattice.position(v));
+                let reference = tetrahedron_signed_volume(&ra, &rb, &rc, &rd);
+                !(tetrahedron_signed_volume(&a, &b, &c, &d) * reference.signum() > 0.0
+                    && within_bounds(
+                        &a,
+                        &b,
+                        &c,
+                        &d,
+                        (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG),
+                    ))
+            }
+        })
+        .map(|(_, &owner)| owner)
+        .collect()
 }
 
 /// The edges (`a < b`) of the BCC tetrahedra `fine` whose ends have opposite signs, sorted: the
@@ -666,9 +701,6 @@ fn enforce_uncut_transitions(octree: &mut Octree, lattice: &BccLattice, surface:
         }
         split.sort_unstable();
         split.dedup();
-        if std::env::var_os("GRADED_DEBUG").is_some() {
-            eprintln!("round: {} leaves split, {} finest", split.len(), octree.leaves.iter().filter(|c| c.0 == 0).count());
-        }
         for cube in split {
             if octree.leaves.contains(&cube) {
                 octree.split(cube);
@@ -757,7 +789,7 @@ fn build_octree(surface: &ClosedSurface, origin: Vec3, h: f64, cubes: [i64; 3]) 
 mod tests {
     use super::*;
     use crate::stuffing::{dihedral_angles, within_bounds, MAX_DIHEDRAL_BOUND_DEG};
-    use crate::stuffing::{MIN_DIHEDRAL_BOUND_DEG, ALPHA_LONG, ALPHA_SHORT};
+    use crate::stuffing::{ALPHA_LONG, ALPHA_SHORT, MIN_DIHEDRAL_BOUND_DEG};
 
     /// A xorshift generator: uniform numbers in [0, 1).
     struct Rng(u64);
@@ -919,8 +951,10 @@ mod tests {
                 .collect();
             let filled = fill_graded(&lattice, &fine, &coarse, &mut signs, &cuts)
                 .unwrap_or_else(|b| panic!("{} at {:?}", b.what, b.point));
-            let place = |t: &[u32; 4]| t.map(|id| final_position(&lattice, &cuts, &filled.warped, id));
-            let positive = |p: &[Vec3; 4]| tetrahedron_signed_volume(&p[0], &p[1], &p[2], &p[3]) > 0.0;
+            let place =
+                |t: &[u32; 4]| t.map(|id| final_position(&lattice, &cuts, &filled.warped, id));
+            let positive =
+                |p: &[Vec3; 4]| tetrahedron_signed_volume(&p[0], &p[1], &p[2], &p[3]) > 0.0;
             for t in &filled.stenciled {
                 let p = place(t);
                 assert!(positive(&p), "stencil tetrahedron {t:?} inverted");
@@ -1071,7 +1105,9 @@ mod tests {
                 let reference = tet.map(|v| lattice.position(v));
                 let mut shape: Vec<i64> = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
                     .iter()
-                    .map(|&(i, j)| (4.0 * (reference[i] - reference[j]).norm_squared()).round() as i64)
+                    .map(|&(i, j)| {
+                        (4.0 * (reference[i] - reference[j]).norm_squared()).round() as i64
+                    })
                     .collect();
                 shape.sort_unstable();
                 let by_shape = shapes.entry(shape).or_insert_with(Range::new);
@@ -1090,7 +1126,8 @@ mod tests {
                                     continue;
                                 }
                                 let p = [a.0, b.0, c.0, d.0];
-                                let volume = sign * tetrahedron_signed_volume(&p[0], &p[1], &p[2], &p[3]);
+                                let volume =
+                                    sign * tetrahedron_signed_volume(&p[0], &p[1], &p[2], &p[3]);
                                 assert!(volume > 0.0, "transition tetrahedron inverted: {p:?}");
                                 by_shape.add(p);
                             }
@@ -1103,8 +1140,8 @@ mod tests {
     }
 
     /// The transition and coarse tetrahedra with warped vertices, at the corners of the
-    /// configuration space ([`transition_corners`]; the extremes are the same with each warp also
-    /// at ¼, ½ and ¾ of α, and with 1,500 octrees instead of 300). Measured (4·squared edge
+    /// configuration space ([`transition_corners`]; the extremes are the same with 200 octrees and
+    /// each warp also at ¼, ½ and ¾ of α, and with 1,500 octrees). Measured (4·squared edge
     /// lengths in h² name the shapes):
     ///
     /// - half-pyramid over a finest cube's face, apex its centre ([3, 3, 3, 4, 4, 8]):
@@ -1167,5 +1204,128 @@ mod tests {
         assert!(lo >= min - 5e-5 && hi <= max + 5e-5, "{lo}°–{hi}°");
         assert!(lo - min < 1e-4 && max - hi < 1e-4, "{lo}°–{hi}°");
         assert!(found.warped_transition.count > 10_000);
+    }
+
+    /// The worst corner of [`transition_corners_are_bounded`], built on a grid: a 2h cube with
+    /// finest cubes around it, and cut points that warp three vertices of a half-pyramid over a
+    /// finest cube's face (its apex and two base corners) by α − 10⁻⁹ of their edges. The check
+    /// of `tetrahedralize_graded` names the 2h cube; split, the grid is all finest cubes there and
+    /// every output tetrahedron is within the bounds (Table 1's configuration).
+    #[test]
+    fn a_half_pyramid_outside_the_bounds_splits_its_coarse_cube() {
+        let lattice = BccLattice::new(Vec3::zeros(), 1.0, [8, 8, 8]);
+        let coarse_cube: Cube = (1, [4, 2, 0]);
+        let mut octree = Octree {
+            leaves: FastSet::default(),
+            sides: HashMap::default(),
+            cubes: [8, 8, 8],
+        };
+        octree.leaves.insert(coarse_cube);
+        for k in 0..512i64 {
+            let c = [k % 8, (k / 8) % 8, k / 64];
+            if !(4..6).contains(&c[0]) || !(2..4).contains(&c[1]) || !(0..2).contains(&c[2]) {
+                octree.leaves.insert((0, c));
+            }
+        }
+        octree.balance();
+        let black = |p: [usize; 3]| lattice.black_id(p);
+        let red = |c: [usize; 3]| lattice.red_id(c);
+        // Outside: a corner and two cube centres; everything else inside.
+        let mut original = vec![1i8; lattice.vertex_count()];
+        for v in [black([7, 3, 1]), red([6, 1, 1]), red([6, 2, 2])] {
+            original[v as usize] = -1;
+        }
+        // Warped: the base corner (6, 3, 1) along +x, the apex (6.5, 2.5, 1.5) along −y, the base
+        // corner (6, 2, 2) toward (6.5, 2.5, 2.5); every other cut point at mid-edge.
+        let targets = [
+            (black([6, 3, 1]), black([7, 3, 1])),
+            (red([6, 2, 1]), red([6, 1, 1])),
+            (black([6, 2, 2]), red([6, 2, 2])),
+        ];
+        let cuts_for = |fine: &[[u32; 4]], signs: &[i8]| -> Vec<Cut> {
+            cut_edges(fine, signs)
+                .into_iter()
+                .map(|(a, b)| {
+                    let (inside, outside) = if signs[a as usize] > 0 {
+                        (a, b)
+                    } else {
+                        (b, a)
+                    };
+                    let long = lattice.is_red(a) == lattice.is_red(b);
+                    let alpha = if long { ALPHA_LONG } else { ALPHA_SHORT };
+                    let t = if targets.contains(&(inside, outside)) {
+                        alpha - 1e-9
+                    } else {
+                        0.5
+                    };
+                    let (p, q) = (lattice.position(inside), lattice.position(outside));
+                    Cut {
+                        a,
+                        b,
+                        point: p + (q - p) * t,
+                    }
+                })
+                .collect()
+        };
+        let (fine, coarse, owners) = grid_tetrahedra(&octree, &lattice);
+        let mut signs = original.clone();
+        let cuts = cuts_for(&fine, &signs);
+        let filled = fill_graded(&lattice, &fine, &coarse, &mut signs, &cuts).expect("fills");
+        for (v, _) in targets {
+            assert!(
+                filled.warped.contains_key(&v),
+                "{:?} not warped",
+                lattice.half_coords(v)
+            );
+        }
+        let half_pyramid = [
+            black([6, 3, 1]),
+            black([6, 2, 2]),
+            black([6, 3, 2]),
+            red([6, 2, 1]),
+        ];
+        let kept = filled
+            .transition
+            .iter()
+            .find(|t| {
+                let mut a = **t;
+                let mut b = half_pyramid;
+                a.sort_unstable();
+                b.sort_unstable();
+                a == b
+            })
+            .expect("the half-pyramid is kept");
+        let [a, b, c, d] = kept.map(|v| final_position(&lattice, &cuts, &filled.warped, v));
+        let mut range = Range::new();
+        range.add([a, b, c, d]);
+        assert!(
+            (range.min - 8.418109).abs() < 1e-5 && (range.max - 168.621933).abs() < 1e-5,
+            "{range:?}"
+        );
+        let split = failing_transitions(&lattice, &coarse, &owners, &signs, &cuts, &filled.warped);
+        assert_eq!(split, vec![coarse_cube]);
+
+        octree.split(coarse_cube);
+        octree.balance();
+        let (fine, coarse, owners) = grid_tetrahedra(&octree, &lattice);
+        assert!(coarse.is_empty(), "all finest now");
+        let mut signs = original;
+        let cuts = cuts_for(&fine, &signs);
+        let filled = fill_graded(&lattice, &fine, &coarse, &mut signs, &cuts).expect("fills");
+        assert!(
+            failing_transitions(&lattice, &coarse, &owners, &signs, &cuts, &filled.warped)
+                .is_empty()
+        );
+        for t in filled.stenciled.iter().chain(&filled.transition) {
+            let [a, b, c, d] = t.map(|v| final_position(&lattice, &cuts, &filled.warped, v));
+            assert!(tetrahedron_signed_volume(&a, &b, &c, &d) > 0.0);
+            assert!(within_bounds(
+                &a,
+                &b,
+                &c,
+                &d,
+                (MIN_DIHEDRAL_BOUND_DEG, MAX_DIHEDRAL_BOUND_DEG)
+            ));
+        }
     }
 }
