@@ -351,6 +351,9 @@ pub fn tetrahedralize_graded(
             }
         }
         octree.balance();
+        // The split cubes' children and the balancing's take their parents' sides, so the rule
+        // holds again; applied anyway, it costs a pass over the finest cubes in a rare round.
+        enforce_uncut_transitions(&mut octree, &lattice, surface);
     };
     let GradedFill {
         stenciled: mut tetrahedra,
