@@ -402,7 +402,7 @@ fn failing_transitions(
         .zip(owners)
         .filter(|(t, _)| {
             let s = t.map(|v| signs[v as usize]);
-            s.iter().any(|&x| x > 0) && s.iter().any(|&x| x == 0) && {
+            s.iter().any(|&x| x > 0) && s.contains(&0) && {
                 let [a, b, c, d] = t.map(position);
                 let [ra, rb, rc, rd] = t.map(|v| lattice.position(v));
                 let reference = tetrahedron_signed_volume(&ra, &rb, &rc, &rd);
@@ -550,7 +550,8 @@ fn grid_tetrahedra(octree: &Octree, lattice: &BccLattice) -> GridTetrahedra {
         .collect();
     let black = |p: [i64; 3]| lattice.black_id(p.map(|x| x as usize));
     let centre = |cube: Cube| octree_centre(lattice, cube);
-    let chunks: Vec<(Vec<[u32; 4]>, Vec<[u32; 4]>)> = leaves
+    type Tetrahedra = Vec<[u32; 4]>;
+    let chunks: Vec<(Tetrahedra, Tetrahedra)> = leaves
         .par_iter()
         .map(|&cube| {
             let (level, c) = cube;
