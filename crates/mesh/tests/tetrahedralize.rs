@@ -432,6 +432,33 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+
+    /// Graded meshes of tori anywhere (curved surfaces that cross the octree's coarse cubes at any
+    /// angle, so that the rule keeping transition tetrahedra uncut and the bound check on warped
+    /// ones meet many configurations): valid, within the bounds, with the uniform mesh's boundary
+    /// and volume, and no more tetrahedra.
+    #[test]
+    fn graded_tori_are_valid_and_share_the_uniform_boundary(
+        tube in 0.3..0.6f64,
+        (rotation, scale, shift) in placement(),
+        fraction in 0.02..0.05f64,
+    ) {
+        let s = surface(&transformed(torus(1.0, tube, 32, 16), &rotation, scale, shift));
+        let spacing = (fraction * diagonal(&s)).min(0.5 * tube * scale);
+        let options = StuffingOptions::new(spacing).expect("positive spacing");
+        let graded = tetrahedralize_graded(&s, &options)
+            .unwrap_or_else(|e| panic!("graded stuffing at spacing {spacing}: {e}"));
+        let uniform = stuff(&s, spacing);
+        assert_valid_with(&s, &graded, spacing, None, false);
+        prop_assert_eq!(boundary_geometry(&graded), boundary_geometry(&uniform));
+        // Same region: equal volumes up to round-off in the sums (1e-9 relative).
+        prop_assert!((graded.report.volume - uniform.report.volume).abs() <= 1e-9 * uniform.report.volume);
+        prop_assert!(graded.report.tets <= uniform.report.tets);
+    }
+}
+
 /// The torus that `tori_are_filled_within_the_bounds` shrank to (tetrahedralize.proptest-regressions)
 /// when the bounds were wrongly taken as 10.7°–164.8°: its 10.28° tetrahedron is legal for the
 /// thresholds in use, whose proven bounds are 9.3171°–161.6432°.
