@@ -906,29 +906,8 @@ mod tests {
             let mut signs: Vec<i8> = (0..n)
                 .map(|_| if rng.unit() < inside { 1 } else { -1 })
                 .collect();
-            let mut leaves: Vec<Cube> = octree.leaves.iter().copied().collect();
-            leaves.sort_unstable();
-            for &cube in &leaves {
-                let (level, c) = cube;
-                if level == 0 {
-                    if (0..6).any(|k| {
-                        octree
-                            .face_neighbour(cube, k / 2, k % 2 == 1)
-                            .is_some_and(|o| o.0 > 0)
-                    }) {
-                        signs[octree_centre(&lattice, cube) as usize] = side;
-                    }
-                    continue;
-                }
-                let s = 1i64 << level;
-                for k in 0..(s + 1).pow(3) {
-                    let p = [
-                        c[0] + k % (s + 1),
-                        c[1] + (k / (s + 1)) % (s + 1),
-                        c[2] + k / ((s + 1) * (s + 1)),
-                    ];
-                    signs[lattice.black_id(p.map(|x| x as usize)) as usize] = side;
-                }
+            for v in coarse_side_points(&octree, &lattice) {
+                signs[v as usize] = side;
             }
             let cuts: Vec<Cut> = cut_edges(&fine, &signs)
                 .into_iter()
