@@ -1278,6 +1278,7 @@ tolerance = 1e-9
                 tolerance: Some(1e-9),
                 relaxation: None,
                 factor_reuse: None,
+                memory_budget: None,
             })
             .unwrap();
         assert_eq!(setup.settings, expected);

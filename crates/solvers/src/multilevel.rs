@@ -459,6 +459,8 @@ enum CgEnd {
 
 /// Newton's linear solver: the Cholesky factor within the memory budget, the multilevel solve
 /// above it (see the module documentation). It offers the calls Newton makes on a factor.
+// One per Newton solver; the factor stays inline (the common path), the rare multilevel solve boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub(crate) enum LinearSolver {
     /// A sparse Cholesky factor (LLᵀ or LDLᵀ).
