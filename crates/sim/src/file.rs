@@ -1329,6 +1329,54 @@ tolerance = 1e-9
         }
     }
 
+    /// `memory_budget` bounds Newton's factor (newton) or PD's (the PD-based integrators), as
+    /// bytes or text; bad text and an integrator that factors nothing are refused, naming the key.
+    #[test]
+    fn memory_budget_key_reaches_the_factor() {
+        let parse = |method: &str, line: &str| {
+            parse(&format!(
+                "[integrator]\nmethod = \"{method}\"\ntime_step = 0.01\n{line}"
+            ))
+        };
+        let default = parse("newton", "").unwrap();
+        assert_eq!(
+            default.settings.newton.cholesky.memory_budget,
+            MemoryBudget::Machine
+        );
+        let newton = parse("newton", "memory_budget = \"1.5G\"\n").unwrap();
+        assert_eq!(
+            newton.settings.newton.cholesky.memory_budget,
+            MemoryBudget::Bytes(3 << 29)
+        );
+        let pd = parse("pd", "memory_budget = 4096\n").unwrap();
+        assert_eq!(
+            pd.settings.pd.cholesky.memory_budget,
+            MemoryBudget::Bytes(4096)
+        );
+        assert_eq!(
+            pd.settings.solver_options().memory_budget,
+            Some(MemoryBudget::Bytes(4096))
+        );
+        for (method, line, expected) in [
+            (
+                "newton",
+                "memory_budget = \"lots\"\n",
+                "not a memory budget",
+            ),
+            (
+                "symplectic-euler",
+                "memory_budget = \"1G\"\n",
+                "factors nothing",
+            ),
+        ] {
+            let err = parse(method, line).unwrap_err().to_string();
+            assert!(
+                err.contains("integrator.memory_budget") && err.contains(expected),
+                "{err}"
+            );
+        }
+    }
+
     /// `factor_reuse` sets Newton's CG iterations on a held factor (0: off); it is refused for
     /// another integrator and out of range, naming its key.
     #[test]
