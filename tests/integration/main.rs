@@ -15,6 +15,7 @@ mod hard_cases;
 mod implicit;
 mod implicit_forces;
 mod integrators;
+mod memory_budget;
 mod mesh_io;
 mod mesh_properties;
 mod moving_pins;

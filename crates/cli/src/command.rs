@@ -16,6 +16,7 @@ use crate::sim::{
     parse_energy_limit, Integrator, LinearSolver, PinMethod, RelaxationPreset, SimError,
     Simulation, SolverOptions,
 };
+use crate::solvers::MemoryBudget;
 use crate::test_hook::Halt;
 use clap::{Parser, Subcommand, ValueEnum};
 
@@ -120,6 +121,14 @@ pub(crate) struct RunArgs {
     #[arg(long, value_name = "N")]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     factor_reuse: Option<usize>,
+    /// The most memory a sparse Cholesky factor may take (newton, pd, pd-chebyshev, lbfgs,
+    /// newton-cg): bytes with an optional unit K, M, G or T (powers of 1024), e.g. 4G; machine
+    /// (half the physical memory); or unlimited. Above it Newton solves its systems by CG with
+    /// the AMG preconditioner instead of factoring them, and the PD-based integrators are refused
+    /// with the size needed (docs/solvers.md §2.5). Default: the scene file's, else machine.
+    #[arg(long, value_name = "BYTES|machine|unlimited")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    memory_budget: Option<String>,
     /// Number of frames to run (default: the scene's; fluid scenes: 50 to t = 1 s for the dam
     /// breaks, 40 to 2 s for hydrostatic-2d).
     #[arg(long)]
@@ -174,7 +183,7 @@ pub(crate) struct RunArgs {
     /// frame), leaving what a run started with --steps N leaves.
     #[arg(long, value_name = "DIR", conflicts_with_all = [
         "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "relaxation",
-        "factor_reuse",
+        "factor_reuse", "memory_budget",
         "dx", "dt",
         "substeps", "force", "energy_limit", "pin_method", "out", "format", "checkpoint_every",
     ])]
@@ -205,6 +214,7 @@ impl RunArgs {
             tolerance: self.tolerance,
             relaxation: self.relaxation.clone(),
             factor_reuse: self.factor_reuse,
+            memory_budget: self.memory_budget.clone(),
             steps: self.steps,
             dx: self.dx,
             dt: self.dt,
@@ -377,6 +387,15 @@ fn run_setup<const D: usize>(
     }
     let linear_solver = parse_flag::<LinearSolver>(&args.linear_solver, "linear-solver")?;
     let relaxation = parse_flag::<RelaxationPreset>(&args.relaxation, "relaxation")?;
+    let memory_budget = match &args.memory_budget {
+        Some(text) => Some(
+            MemoryBudget::parse(text).map_err(|reason| CliError::Argument {
+                name: "memory-budget",
+                reason,
+            })?,
+        ),
+        None => None,
+    };
     // One flag at a time, so that an error names its flag.
     for (name, options) in [
         (
@@ -418,6 +437,13 @@ fn run_setup<const D: usize>(
             "factor-reuse",
             SolverOptions {
                 factor_reuse: args.factor_reuse,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "memory-budget",
+            SolverOptions {
+                memory_budget,
                 ..SolverOptions::default()
             },
         ),
@@ -575,6 +601,7 @@ fn run_setup<const D: usize>(
                 tolerance: o.tolerance,
                 relaxation: o.relaxation.map(|r| r.name().to_string()),
                 factor_reuse: o.factor_reuse,
+                memory_budget: o.memory_budget.map(MemoryBudget::bytes),
             })
         },
         pin_method: Some(settings.pins.name().into()),
@@ -813,6 +840,7 @@ fn run_fluid(args: &RunArgs) -> Result<(), CliError> {
         ("tolerance", args.tolerance.is_some()),
         ("relaxation", args.relaxation.is_some()),
         ("factor-reuse", args.factor_reuse.is_some()),
+        ("memory-budget", args.memory_budget.is_some()),
         ("substeps", args.substeps.is_some()),
         ("force", args.force),
         ("energy-limit", args.energy_limit.is_some()),

@@ -68,6 +68,7 @@
 //! # pin_method = "reduction"  # or "counter-force" (linearized, newton; pd refuses it)
 //! # relaxation = "none"    # newton: or "buckling" (sweeps and fold elimination between steps)
 //! # factor_reuse = 4       # newton: CG iterations on an earlier matrix's factor before factoring; 0: off
+//! # memory_budget = "4G"   # newton, pd, pd-chebyshev, lbfgs, newton-cg: the most a Cholesky factor may take ("machine": half the RAM; "unlimited"; or bytes)
 //!
 //! [run]
 //! steps = 30
@@ -96,6 +97,7 @@ use std::path::{Path, PathBuf};
 
 use hooke_mesh::io::{read_mesh, Mesh};
 use hooke_mesh::{generators, Bending, MassModel, SpringMesh};
+use hooke_solvers::MemoryBudget;
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
@@ -188,7 +190,9 @@ struct Document {
 /// The most vertices a scene file may ask a generator for: 2^24 (cloth n = 4096, beam r = 160),
 /// already tens of GB with springs and a solver's matrices. The file is input, and a size in it
 /// must not decide how much the process tries to allocate; programs that want more call
-/// [`generators`] directly.
+/// [`generators`] directly. A `fill` is bounded the same way: its lattice (about
+/// 2·(bounding box)/spacing³ vertices) may have at most this many vertices, checked before the
+/// mesher allocates anything.
 pub const MAX_GENERATED_VERTICES: usize = 1 << 24;
 
 #[derive(Deserialize)]
@@ -376,6 +380,15 @@ struct IntegratorSection {
     pin_method: Option<String>,
     relaxation: Option<String>,
     factor_reuse: Option<usize>,
+    memory_budget: Option<MemoryBudgetValue>,
+}
+
+/// `integrator.memory_budget`: a size in bytes, or text ("4G", "machine", "unlimited").
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum MemoryBudgetValue {
+    Bytes(u64),
+    Text(String),
 }
 
 /// `integrator.energy_limit`: a factor, or "off".
@@ -621,7 +634,16 @@ impl Context<'_> {
                             return Err(self.invalid("mesh.bending", "bending springs apply to triangle meshes only, not to a filled solid"));
                         }
                         let spacing = m.fill.as_ref().map_or(0.0, |f| f.spacing);
-                        let stuffed = hooke_mesh::stuffing::fill_surface(&tri, spacing)
+                        // The lattice is bounded as a generator's mesh is: refused before the
+                        // mesher allocates it.
+                        let options = hooke_mesh::stuffing::StuffingOptions {
+                            max_lattice_vertices: MAX_GENERATED_VERTICES as u64,
+                            ..hooke_mesh::stuffing::StuffingOptions::new(spacing)
+                                .map_err(|e| self.invalid("mesh.fill", e))?
+                        };
+                        let surface = hooke_mesh::stuffing::ClosedSurface::new(&tri)
+                            .map_err(|e| self.invalid("mesh.fill", e))?;
+                        let stuffed = hooke_mesh::stuffing::tetrahedralize(&surface, &options)
                             .map_err(|e| self.invalid("mesh.fill", e))?;
                         SpringMesh::from_tetrahedra(&stuffed.mesh, stiffness, mass)
                     }
@@ -1051,6 +1073,14 @@ impl Context<'_> {
             ),
             None => None,
         };
+        let memory_budget = match &i.memory_budget {
+            Some(MemoryBudgetValue::Bytes(bytes)) => Some(MemoryBudget::Bytes(*bytes)),
+            Some(MemoryBudgetValue::Text(text)) => Some(
+                MemoryBudget::parse(text)
+                    .map_err(|e| self.invalid("integrator.memory_budget", e))?,
+            ),
+            None => None,
+        };
         // One option at a time, so that an error names its key.
         for (key, options) in [
             (
@@ -1092,6 +1122,13 @@ impl Context<'_> {
                 "integrator.factor_reuse",
                 SolverOptions {
                     factor_reuse: i.factor_reuse,
+                    ..SolverOptions::default()
+                },
+            ),
+            (
+                "integrator.memory_budget",
+                SolverOptions {
+                    memory_budget,
                     ..SolverOptions::default()
                 },
             ),
@@ -1241,6 +1278,7 @@ tolerance = 1e-9
                 tolerance: Some(1e-9),
                 relaxation: None,
                 factor_reuse: None,
+                memory_budget: None,
             })
             .unwrap();
         assert_eq!(setup.settings, expected);
@@ -1287,6 +1325,54 @@ tolerance = 1e-9
             assert!(
                 err.contains("integrator.relaxation") && err.contains(expected),
                 "{method} {line}: {err}"
+            );
+        }
+    }
+
+    /// `memory_budget` bounds Newton's factor (newton) or PD's (the PD-based integrators), as
+    /// bytes or text; bad text and an integrator that factors nothing are refused, naming the key.
+    #[test]
+    fn memory_budget_key_reaches_the_factor() {
+        let parse = |method: &str, line: &str| {
+            parse(&format!(
+                "[integrator]\nmethod = \"{method}\"\ntime_step = 0.01\n{line}"
+            ))
+        };
+        let default = parse("newton", "").unwrap();
+        assert_eq!(
+            default.settings.newton.cholesky.memory_budget,
+            MemoryBudget::Machine
+        );
+        let newton = parse("newton", "memory_budget = \"1.5G\"\n").unwrap();
+        assert_eq!(
+            newton.settings.newton.cholesky.memory_budget,
+            MemoryBudget::Bytes(3 << 29)
+        );
+        let pd = parse("pd", "memory_budget = 4096\n").unwrap();
+        assert_eq!(
+            pd.settings.pd.cholesky.memory_budget,
+            MemoryBudget::Bytes(4096)
+        );
+        assert_eq!(
+            pd.settings.solver_options().memory_budget,
+            Some(MemoryBudget::Bytes(4096))
+        );
+        for (method, line, expected) in [
+            (
+                "newton",
+                "memory_budget = \"lots\"\n",
+                "not a memory budget",
+            ),
+            (
+                "symplectic-euler",
+                "memory_budget = \"1G\"\n",
+                "factors nothing",
+            ),
+        ] {
+            let err = parse(method, line).unwrap_err().to_string();
+            assert!(
+                err.contains("integrator.memory_budget") && err.contains(expected),
+                "{err}"
             );
         }
     }

@@ -572,6 +572,11 @@ pub struct SolverOptions {
     /// earlier Newton matrix before the matrix is factored ([`hooke_solvers::FactorReuse`]);
     /// 0 factors every Newton matrix.
     pub factor_reuse: Option<usize>,
+    /// The memory a sparse Cholesky factor may take ([`hooke_solvers::CholeskyParams::memory_budget`],
+    /// docs/solvers.md §2.5): Newton's (above it Newton takes the multilevel path) and the PD
+    /// matrix's of pd, pd-chebyshev, lbfgs and newton-cg (above it they are refused with the
+    /// size needed). Implicit integrators that factor a matrix only.
+    pub memory_budget: Option<hooke_solvers::MemoryBudget>,
 }
 
 impl Settings {
@@ -706,6 +711,26 @@ impl Settings {
             }
             self.newton.factor_reuse.max_iterations = iterations;
         }
+        if let Some(budget) = options.memory_budget {
+            match integrator {
+                Integrator::Newton => self.newton.cholesky.memory_budget = budget,
+                Integrator::ProjectiveDynamics
+                | Integrator::Lbfgs
+                | Integrator::NewtonCg
+                | Integrator::ChebyshevPd => self.pd.cholesky.memory_budget = budget,
+                _ => {
+                    return Err(SimError::invalid(
+                        "memory budget",
+                        budget,
+                        format!(
+                            "bounds a sparse Cholesky factor: it applies to newton, pd, \
+                             pd-chebyshev, lbfgs and newton-cg (this run uses {integrator}, \
+                             which factors nothing)"
+                        ),
+                    ))
+                }
+            }
+        }
         if let Some(tolerance) = options.tolerance {
             match integrator {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
@@ -745,32 +770,38 @@ impl Settings {
                 tolerance: Some(self.linearized.tolerance),
                 relaxation: None,
                 factor_reuse: None,
+                memory_budget: None,
             },
             Integrator::Newton => SolverOptions {
                 iterations: Some(self.newton.max_iterations),
                 tolerance: Some(self.newton.tolerance),
                 relaxation: RelaxationPreset::of(&self.newton.relaxation),
                 factor_reuse: Some(self.newton.factor_reuse.max_iterations),
+                memory_budget: Some(self.newton.cholesky.memory_budget),
                 ..SolverOptions::default()
             },
             Integrator::ProjectiveDynamics => SolverOptions {
                 iterations: Some(self.pd.max_iterations),
                 tolerance: Some(self.pd.tolerance),
+                memory_budget: Some(self.pd.cholesky.memory_budget),
                 ..SolverOptions::default()
             },
             Integrator::Lbfgs => SolverOptions {
                 iterations: Some(self.lbfgs.max_iterations),
                 tolerance: Some(self.lbfgs.tolerance),
+                memory_budget: Some(self.pd.cholesky.memory_budget),
                 ..SolverOptions::default()
             },
             Integrator::NewtonCg => SolverOptions {
                 iterations: Some(self.newton_cg.max_iterations),
                 tolerance: Some(self.newton_cg.tolerance),
+                memory_budget: Some(self.pd.cholesky.memory_budget),
                 ..SolverOptions::default()
             },
             Integrator::ChebyshevPd => SolverOptions {
                 iterations: Some(self.chebyshev.max_iterations),
                 tolerance: Some(self.chebyshev.tolerance),
+                memory_budget: Some(self.pd.cholesky.memory_budget),
                 ..SolverOptions::default()
             },
             _ => SolverOptions::default(),
@@ -880,6 +911,7 @@ mod tests {
             tolerance: Some(1e-6),
             relaxation: None,
             factor_reuse: None,
+            memory_budget: None,
         })
         .unwrap();
         assert_eq!(s.linearized.beta, 0.5);

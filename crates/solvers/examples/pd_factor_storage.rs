@@ -37,6 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 kind,
                 factor_threads: threads,
                 solve_threads: threads,
+                ..CholeskyParams::default()
             };
             let mut llt = SparseCholesky::analyze(pattern.symbolic(), params)?;
             let factor = median(

@@ -10,6 +10,12 @@
 //!
 //! The matrix is given in full symmetric storage (both triangles, as hooke's assembly produces);
 //! only its lower triangle is read.
+//!
+//! A factor is allocated only within [`CholeskyParams::memory_budget`] (docs/solvers.md §2.5): the
+//! symbolic analysis, whose memory grows with the matrix, not with the factor, says how many
+//! values the factor will hold, and a factor (with its numeric scratch) above the budget is refused
+//! with [`CholeskyError::OverBudget`] before its values are allocated, instead of aborting the
+//! process when the allocation fails.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -26,6 +32,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use crate::params::{self, ParamError, MAX_THREADS};
+
+pub use crate::multilevel::MemoryBudget;
 
 /// How the factor is organised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -60,6 +68,10 @@ pub struct CholeskyParams {
     /// measured slower than the serial one on 2 cores; the split three-column solve of projective
     /// dynamics 1.15× faster on cloth-160 and 1.28× on cloth-320 (`examples/pd_solve_variants`).
     pub solve_threads: usize,
+    /// The most memory the factor's values and its numeric scratch may take (bytes, once
+    /// resolved: [`MemoryBudget::bytes`]). Default [`MemoryBudget::Machine`], half the machine's
+    /// physical memory. Checked after the symbolic analysis, before the factor is allocated.
+    pub memory_budget: MemoryBudget,
 }
 
 impl Default for CholeskyParams {
@@ -68,6 +80,7 @@ impl Default for CholeskyParams {
             kind: FactorKind::Auto,
             factor_threads: 1,
             solve_threads: 1,
+            memory_budget: MemoryBudget::Machine,
         }
     }
 }
@@ -138,6 +151,21 @@ pub enum CholeskyError {
     /// A parameter is out of its range ([`CholeskyParams::validate`]).
     #[error(transparent)]
     InvalidParameter(#[from] ParamError),
+    /// The factor (its values and the numeric factorisation's scratch) would take more memory
+    /// than [`CholeskyParams::memory_budget`] allows; nothing was allocated for it.
+    #[error("the sparse Cholesky factor of this {dim}×{dim} matrix needs {} of memory, above the memory budget of {} (raise the budget, or use a solver with a multilevel path: docs/solvers.md §2.5)", crate::multilevel::human_bytes(*needed), crate::multilevel::human_bytes(*budget))]
+    OverBudget {
+        /// The matrix' dimension.
+        dim: usize,
+        /// Bytes the factor needs: 8 per stored value plus the numeric scratch.
+        needed: u64,
+        /// The budget in bytes.
+        budget: u64,
+    },
+    /// The multilevel solve that stands in for a factor over the budget failed (its set-up,
+    /// or a problem it cannot serve); docs/solvers.md §2.5.
+    #[error("multilevel solve: {0}")]
+    Multilevel(String),
 }
 
 /// The inertia of a symmetric matrix, read off the pivots of its LDLᵀ factorisation.
@@ -202,7 +230,8 @@ impl SparseCholesky {
     ///
     /// # Errors
     /// [`CholeskyError::InvalidParameter`] if `params` does not pass [`CholeskyParams::validate`];
-    /// [`CholeskyError::Symbolic`] if faer's analysis fails.
+    /// [`CholeskyError::Symbolic`] if faer's analysis fails; [`CholeskyError::OverBudget`] if the
+    /// factor would exceed [`CholeskyParams::memory_budget`] (nothing allocated for it).
     ///
     /// # Panics
     /// If the pattern is not square.
@@ -241,7 +270,9 @@ impl SparseCholesky {
     ///
     /// # Errors
     /// [`CholeskyError::InvalidParameter`] if `params` does not pass [`CholeskyParams::validate`];
-    /// [`CholeskyError::Symbolic`] if the scratch memory cannot be sized.
+    /// [`CholeskyError::Symbolic`] if the factor or the scratch memory cannot be had;
+    /// [`CholeskyError::OverBudget`] (before allocating the factor) if they would exceed
+    /// [`CholeskyParams::memory_budget`].
     ///
     /// # Panics
     /// If `pattern` is not of the analysis' size.
@@ -266,6 +297,53 @@ impl SparseCholesky {
             row_idx.extend_from_slice(pattern.row_idx_of_col_raw(j));
             col_ptr.push(row_idx.len());
         }
+        let (needed, scratch_req) = Self::memory_needed(&symbolic, params);
+        let budget = params.memory_budget.bytes();
+        if needed > budget {
+            return Err(CholeskyError::OverBudget {
+                dim: n,
+                needed,
+                budget,
+            });
+        }
+        // Fallible, so that a factor within the budget that the machine cannot hold after all is
+        // an error, not an abort.
+        let mut factor = Vec::new();
+        factor
+            .try_reserve_exact(symbolic.len_val())
+            .map_err(|_| CholeskyError::Symbolic(format!("factor memory: {needed} bytes")))?;
+        factor.resize(symbolic.len_val(), 0.0);
+        let scratch = MemBuffer::try_new(scratch_req)
+            .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
+        let column_scratch = MemBuffer::try_new(if params.solve_threads > 1 {
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)
+        } else {
+            StackReq::EMPTY
+        })
+        .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
+        Ok(SparseCholesky {
+            factor,
+            symbolic,
+            scratch,
+            column_scratch,
+            params,
+            n,
+            col_ptr,
+            row_idx,
+            factored: Stored::None,
+            analysis_time,
+            factor_time: Duration::ZERO,
+        })
+    }
+
+    /// The memory a factor of `symbolic` takes with `params` (bytes: 8 per stored value plus the
+    /// numeric factorisation's or a three-column solve's scratch, whichever is larger, plus a
+    /// split solve's column scratch), which [`CholeskyParams::memory_budget`] bounds, and the
+    /// scratch requirement itself. Saturates instead of overflowing.
+    pub fn memory_needed(
+        symbolic: &SymbolicCholesky<usize>,
+        params: CholeskyParams,
+    ) -> (u64, StackReq) {
         let factor_req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(
                 par(params.factor_threads),
@@ -278,27 +356,25 @@ impl SparseCholesky {
         ]);
         // Three right-hand sides (the x, y, z coordinates) is the widest solve hooke makes.
         let solve_req = symbolic.solve_in_place_scratch::<f64>(3, Par::Seq);
-        let scratch = MemBuffer::try_new(StackReq::any_of(&[factor_req, solve_req]))
-            .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
-        let column_scratch = MemBuffer::try_new(if params.solve_threads > 1 {
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)
+        let scratch_req = StackReq::any_of(&[factor_req, solve_req]);
+        let column = if params.solve_threads > 1 {
+            symbolic
+                .solve_in_place_scratch::<f64>(1, Par::Seq)
+                .size_bytes()
         } else {
-            StackReq::EMPTY
-        })
-        .map_err(|e| CholeskyError::Symbolic(format!("scratch memory: {e:?}")))?;
-        Ok(SparseCholesky {
-            factor: vec![0.0; symbolic.len_val()],
-            symbolic,
-            scratch,
-            column_scratch,
-            params,
-            n,
-            col_ptr,
-            row_idx,
-            factored: Stored::None,
-            analysis_time,
-            factor_time: Duration::ZERO,
-        })
+            0
+        };
+        // An overflowed requirement has no alignment: it is larger than any memory.
+        let scratch_bytes = if scratch_req.align_bytes() == 0 {
+            u64::MAX
+        } else {
+            scratch_req.size_bytes() as u64
+        };
+        let needed = (symbolic.len_val() as u64)
+            .saturating_mul(std::mem::size_of::<f64>() as u64)
+            .saturating_add(scratch_bytes)
+            .saturating_add(column as u64);
+        (needed, scratch_req)
     }
 
     /// The settings it was made with.

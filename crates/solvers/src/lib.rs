@@ -5,7 +5,8 @@
 //!   and block [`Jacobi`], which return `Result<`[`Report`]`, `[`SolveError`]`>`;
 //! - [`Amg`], a smoothed-aggregation algebraic multigrid preconditioner for 3 × 3-block (or
 //!   scalar) SPD systems, `Result<_, `[`AmgError`]`>`;
-//! - [`SparseCholesky`] (faer, symbolic analysis reused), `Result<_, `[`CholeskyError`]`>`;
+//! - [`SparseCholesky`] (faer, symbolic analysis reused, the factor bounded by a
+//!   [`MemoryBudget`]), `Result<_, `[`CholeskyError`]`>`;
 //! - [`Newton`] on a [`NewtonProblem`] (LDLᵀ with inertia, an indefinite-Hessian policy, a line
 //!   search, and an opt-in nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's
 //!   problem), which returns `Result<`[`NewtonReport`]`, `[`NewtonError`]`>`;
@@ -49,6 +50,7 @@ pub mod cholesky;
 mod forest_solve;
 pub mod jacobi;
 pub mod lbfgs;
+pub mod multilevel;
 pub mod newton;
 pub mod newton_cg;
 pub mod operator;
@@ -66,6 +68,10 @@ pub use cholesky::{
 pub use jacobi::{Jacobi, JacobiParams};
 pub use lbfgs::{
     Lbfgs, LbfgsError, LbfgsParams, LbfgsReport, LBFGS_MAX_HISTORY, LBFGS_MAX_ITERATIONS,
+};
+pub use multilevel::{
+    MemoryBudget, MultilevelSolve, MultilevelStats, FALLBACK_BUDGET, MULTILEVEL_MAX_ITERATIONS,
+    MULTILEVEL_TOLERANCE,
 };
 pub use newton::{
     Convergence, FactorReuse, IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams,

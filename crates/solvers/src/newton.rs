@@ -79,7 +79,8 @@ use std::time::{Duration, Instant};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use crate::cg::{CgParams, ConjugateGradient};
-use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
+use crate::cholesky::{CholeskyError, CholeskyParams, Inertia};
+use crate::multilevel::{LinearSolver, MultilevelSolve};
 use crate::operator::{dot, Symmetric};
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::{Report, StopReason};
@@ -159,6 +160,13 @@ pub trait NewtonProblem {
     /// problems without one (the default, `None`) are solved as under
     /// [`IndefinitePolicy::NewtonIfDescent`].
     fn convexified_hessian(&mut self, _x: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+        None
+    }
+    /// The block size of the unknowns and a near-nullspace of the Hessian (column-major, dim × k,
+    /// 1 ≤ k ≤ [`crate::AMG_MAX_BLOCK`]), for the multilevel path's AMG set-up (docs/solvers.md
+    /// §2.5); backward Euler in 3D: 3 and the rigid-body modes at x. Default `None`: scalar
+    /// blocks and the constant vector.
+    fn near_nullspace(&self, _x: &[f64]) -> Option<(usize, Vec<f64>)> {
         None
     }
     /// Lower Φ from `x`, in place, by the nonlinear relaxation `relaxation` describes (block
@@ -931,7 +939,8 @@ impl Failure {
 pub struct Newton {
     /// The settings.
     pub params: NewtonParams,
-    cholesky: SparseCholesky,
+    /// The Cholesky factor, or above the memory budget the multilevel solve (docs/solvers.md §2.5).
+    cholesky: LinearSolver,
     diagonal_slots: Vec<usize>,
     hessian: Vec<f64>,
     shifted: Vec<f64>,
@@ -964,7 +973,9 @@ struct Accepted {
 }
 
 impl Newton {
-    /// Analyse the problem's Hessian pattern once.
+    /// Analyse the problem's Hessian pattern once. A Cholesky factor above
+    /// [`CholeskyParams::memory_budget`] is not allocated: the Newton systems are then solved on
+    /// the multilevel path ([`Newton::multilevel`], docs/solvers.md §2.5).
     ///
     /// # Errors
     /// [`NewtonError::InvalidParameter`] if `params` does not pass [`NewtonParams::validate`];
@@ -992,7 +1003,7 @@ impl Newton {
             .collect();
         let nnz = pattern.compute_nnz();
         Ok(Newton {
-            cholesky: SparseCholesky::analyze(pattern, params.cholesky)?,
+            cholesky: LinearSolver::analyze(pattern, params.cholesky)?,
             diagonal_slots,
             hessian: vec![0.0; nnz],
             shifted: vec![0.0; nnz],
@@ -1008,6 +1019,12 @@ impl Newton {
             reusable: false,
             params,
         })
+    }
+
+    /// The multilevel solve standing in for a Cholesky factor above the memory budget
+    /// ([`CholeskyParams::memory_budget`], docs/solvers.md §2.5); `None` on the direct path.
+    pub fn multilevel(&self) -> Option<&MultilevelSolve> {
+        self.cholesky.multilevel()
     }
 
     /// The factor between successive shifts (or blend weights) under `policy`.
@@ -1053,7 +1070,7 @@ impl Newton {
         let factored = if policy == IndefinitePolicy::NewtonIfDescent {
             self.cholesky.factorize_ldlt(matrix)
         } else {
-            self.cholesky.factorize(matrix).map(|()| Inertia {
+            self.cholesky.factorize(matrix, &self.g).map(|()| Inertia {
                 positive: self.g.len(),
                 negative: 0,
             })
@@ -1331,6 +1348,30 @@ impl Newton {
     /// report holds the account so far.
     #[track_caller]
     pub(crate) fn minimize_into(
+        &mut self,
+        problem: &mut impl NewtonProblem,
+        x: &mut [f64],
+        report: &mut NewtonReport,
+    ) -> Result<(), Failure> {
+        if let Some(multilevel) = self.cholesky.multilevel_mut() {
+            // The multilevel path gives no inertia: it blends towards the convexified Hessian
+            // where CG meets negative curvature (docs/solvers.md §2.5).
+            multilevel
+                .prepare(problem, x)
+                .map_err(Failure::Factorization)?;
+            if self.params.indefinite == IndefinitePolicy::NewtonIfDescent {
+                self.params.indefinite = IndefinitePolicy::ConvexBlend;
+                let result = self.minimize_iterations(problem, x, report);
+                self.params.indefinite = IndefinitePolicy::NewtonIfDescent;
+                return result;
+            }
+        }
+        self.minimize_iterations(problem, x, report)
+    }
+
+    /// [`Newton::minimize_into`] with the linear solver as it is.
+    #[track_caller]
+    fn minimize_iterations(
         &mut self,
         problem: &mut impl NewtonProblem,
         x: &mut [f64],

@@ -85,6 +85,11 @@ pub struct SolverSettingsRecord {
     /// integrators).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub factor_reuse: Option<usize>,
+    /// The memory budget of the sparse Cholesky factors (bytes, resolved: `machine` is written as
+    /// the bytes it meant on this machine; docs/solvers.md §2.5); absent for integrators that
+    /// factor nothing and in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_budget: Option<u64>,
 }
 
 /// What a step's `solver_residual` measures: Newton's relative gradient (unit `1`), projective

@@ -230,6 +230,36 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         true
     }
 
+    /// D × D vertex blocks and the rigid-body modes at `xf` (docs/solvers.md §2.4): in 3D the
+    /// 3 translations and 3 rotations of [`crate::Amg::rigid_body_modes`]; in 2D the 2
+    /// translations and the rotation about the centroid.
+    fn near_nullspace(&self, xf: &[f64]) -> Option<(usize, Vec<f64>)> {
+        if D == 3 {
+            return Some((3, crate::Amg::rigid_body_modes(xf)));
+        }
+        let dim = xf.len();
+        let n = dim / D;
+        let mut centroid = [0.0; D];
+        for p in xf.chunks_exact(D) {
+            for (c, v) in centroid.iter_mut().zip(p) {
+                *c += v / n.max(1) as f64;
+            }
+        }
+        let rotation = usize::from(D == 2);
+        let mut modes = vec![0.0; (D + rotation) * dim];
+        for (v, p) in xf.chunks_exact(D).enumerate() {
+            for a in 0..D {
+                modes[a * dim + D * v + a] = 1.0;
+            }
+            if D == 2 {
+                // ω × r in the plane: (−y, x).
+                modes[2 * dim + 2 * v] = -(p[1] - centroid[1]);
+                modes[2 * dim + 2 * v + 1] = p[0] - centroid[0];
+            }
+        }
+        Some((D, modes))
+    }
+
     /// The Hessian with the clamped spring blocks ([`Definiteness::Clamped`]): positive definite
     /// with the masses.
     fn convexified_hessian(&mut self, xf: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {

@@ -62,6 +62,7 @@ fn every_configuration_matches_the_dense_solve() {
                 kind,
                 factor_threads: threads,
                 solve_threads: threads,
+                ..CholeskyParams::default()
             };
             let mut llt = SparseCholesky::analyze(a.symbolic(), params).unwrap();
             match kind {

@@ -1,0 +1,62 @@
+//! `hooke run --memory-budget` (docs/solvers.md §2.5): Newton over the budget runs on its
+//! multilevel path and summary.json records the budget; projective dynamics over it is refused with
+//! the size needed; a budget that is not one is refused naming the flag.
+
+use crate::command::{fails_with, hooke, stderr};
+
+#[test]
+fn newton_over_the_budget_runs_and_pd_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_str().unwrap();
+    let out = hooke(&[
+        "run",
+        "cloth-10",
+        "--integrator",
+        "newton",
+        "--memory-budget",
+        "0",
+        "--steps",
+        "2",
+        "--out",
+        out_dir,
+        "-q",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["solver_settings"]["memory_budget"], 0);
+    let steps = summary["steps"].as_array().unwrap();
+    assert!(
+        steps[1..].iter().all(|s| s["solver_converged"] == true),
+        "{steps:?}"
+    );
+    fails_with(
+        &[
+            "run",
+            "cloth-10",
+            "--integrator",
+            "pd",
+            "--memory-budget",
+            "1K",
+            "--steps",
+            "1",
+            "--out",
+            out_dir,
+            "-q",
+        ],
+        &["above the memory budget of 1.0 KiB (1024 bytes)"],
+    );
+    fails_with(
+        &[
+            "run",
+            "cloth-10",
+            "--memory-budget",
+            "lots",
+            "--out",
+            out_dir,
+            "-q",
+        ],
+        &["memory-budget", "not a memory budget"],
+    );
+}
