@@ -550,10 +550,6 @@ impl Runner {
                 let params = ChebyshevParams {
                     max_iterations,
                     rate: *rate,
-                    check_interval: std::env::var("TMP_CHECK")
-                        .ok()
-                        .and_then(|v| v.parse().ok())
-                        .unwrap_or(ChebyshevParams::default().check_interval), // TMP
                     ..ChebyshevParams::default()
                 };
                 let mut solver =
@@ -565,6 +561,9 @@ impl Runner {
                 let mut note = format!("ρ = {rate:.4}");
                 if report.restarts > 0 {
                     note += &format!(", {} restart(s)", report.restarts);
+                }
+                if report.rollbacks > 0 {
+                    note += &format!(" ({} rolled back)", report.rollbacks);
                 }
                 if report.stop == StopReason::Stagnated {
                     note += ", stopped where even plain PD raised Φ (its rounding floor; not converged)";
@@ -581,10 +580,6 @@ impl Runner {
                 let (max_iterations, _) = Self::limits(setting, TOLERANCE_RUN_LIMIT, (10, 0.0));
                 let params = AndersonParams {
                     max_iterations,
-                    window: std::env::var("TMP_WINDOW")
-                        .ok()
-                        .and_then(|v| v.parse().ok())
-                        .unwrap_or(5), // TMP
                     ..AndersonParams::default()
                 };
                 let mut solver =

@@ -42,7 +42,7 @@ pub enum SolverKind {
     /// `chebyshev:K`: Chebyshev-accelerated PD, K iterations, ρ estimated once per scene from 20
     /// plain PD iterations of the step (not timed, as the factorisation).
     Chebyshev,
-    /// `anderson:K`: Anderson-accelerated PD (window 5, energy guard against the plain iterate),
+    /// `anderson:K`: Anderson-accelerated PD (window 8, energy guard against the plain iterate),
     /// K iterations.
     Anderson,
     /// `newton-cg:K`: inexact Newton (PCG on the exact Hessian, preconditioned by PD's factor,
@@ -133,7 +133,7 @@ impl SolverKind {
             SolverKind::Lbfgs => "L-BFGS on PD's factor",
             SolverKind::LbfgsTol => "L-BFGS to a relative gradient of T",
             SolverKind::Chebyshev => "Chebyshev PD",
-            SolverKind::Anderson => "Anderson PD, window 5",
+            SolverKind::Anderson => "Anderson PD, window 8",
             SolverKind::NewtonCg => "inexact Newton, PCG",
             SolverKind::NewtonCgTol => "inexact Newton to a relative gradient of T",
             SolverKind::NewtonCgAmg => "inexact Newton, PCG with an AMG preconditioner",
@@ -246,12 +246,14 @@ pub struct SolverSpec {
 }
 
 impl SolverSpec {
-    /// The specs `hooke bench` uses when none is given: PD by iteration count, Newton by iteration
-    /// count and by tolerance, the linearised integrator with CG by tolerance, with Jacobi by
-    /// iteration count, and with its default solve.
+    /// The specs `hooke bench` uses when none is given: PD by iteration count, Anderson PD by
+    /// iteration count (it beats Chebyshev PD and L-BFGS per iteration on cloth-10 and the beams,
+    /// benches/results/pd-anderson.md), Newton by iteration count and by tolerance, the linearised
+    /// integrator with CG by tolerance, with Jacobi by iteration count, and with its default solve.
     pub fn defaults() -> Vec<SolverSpec> {
         [
             SolverKind::Pd,
+            SolverKind::Anderson,
             SolverKind::Newton,
             SolverKind::NewtonTol,
             SolverKind::CgTol,
