@@ -11,18 +11,25 @@
 //! (estimate it once from plain PD with [`ProjectiveDynamics::estimate_rate`]); γ under-relaxes.
 //!
 //! PD is a fixed-point iteration on a non-convex Φ, so the extrapolation can overshoot and raise Φ
-//! (it does on stiff cloth at large steps). The change of Φ is computed after every iteration, term
-//! by term (one pass over springs and vertices); when it is positive, the extrapolated point is
-//! dropped for the plain PD iterate x̂ (which does not raise Φ but for the rounding of its global
-//! solve) and the schedule restarts with ω = 1. If even x̂ rises, PD is at its rounding floor: the
-//! solve keeps the last point and stops as [`StopReason::Stagnated`]. Φ never increases.
+//! (it does on stiff cloth at large steps). The guard checks Φ every k iterations
+//! ([`ChebyshevParams::check_interval`]) and where the solve stops, against the last checked point
+//! (the start or the last passed check), by the exactly computed change of Φ (term by term, one
+//! pass over springs and vertices). When Φ rose, the last extrapolated point is dropped for the
+//! plain PD iterate x̂ of that iteration, if x̂ is not above the checked point; otherwise the
+//! stretch since the check is rolled back to the checked point and the next stretch is plain PD
+//! (which does not raise Φ but for the rounding of its global solve). Either way the schedule
+//! restarts with ω = 1. If a stretch of plain PD rises, PD is at its rounding floor: the solve keeps
+//! the checked point and stops as [`StopReason::Stagnated`]. Φ never increases from one checked
+//! point to the next, and the result is a checked point: Φ(result) ≤ Φ(start). Points between
+//! checks may lie above (they are never returned). A check costs 0.12–0.30 of a PD iteration on
+//! cloth (docs/solvers.md §7).
 
 use std::time::{Duration, Instant};
 
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
-use crate::params::{self, ParamError};
+use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::projective::{FixedPointError, PdError, ProjectiveDynamics};
 use crate::report::StopReason;
 
@@ -40,8 +47,14 @@ pub struct ChebyshevParams {
     /// Under-relaxation γ in (0, 1]. Default 1 (none).
     pub under_relaxation: f64,
     /// Restart to plain PD when Φ rises. Default true; `false` is the paper's unguarded method, for
-    /// comparison only (it can gain energy).
+    /// comparison only (it can gain energy; Φ is then recorded after every iteration).
     pub restart: bool,
+    /// k: with the restart, Φ is checked every k iterations (and where the solve stops), against
+    /// the last checked point; a stretch of k iterations that raised Φ is rolled back to it (if
+    /// the last plain iterate rose too). Default 4 (docs/solvers.md §7: a check costs 0.12–0.30 of
+    /// a PD iteration on cloth-160 and cloth-40; larger k saved nothing measurable and a rollback
+    /// loses up to k iterations). 1 checks after every iteration.
+    pub check_interval: usize,
     /// Stop when the estimated distance to the solution divided by h is at most `tolerance` (m/s),
     /// as [`crate::PdParams::tolerance`] ([`crate::FixedPointError`], restarted with the
     /// schedule). Default 0.
@@ -56,6 +69,7 @@ impl Default for ChebyshevParams {
             delay: 2,
             under_relaxation: 1.0,
             restart: true,
+            check_interval: 4,
             tolerance: 0.0,
         }
     }
@@ -70,8 +84,8 @@ impl ChebyshevParams {
     /// # Errors
     /// [`ParamError`] naming the first field outside its range: `max_iterations` in
     /// 1..=[`CHEBYSHEV_MAX_ITERATIONS`], `rate` in (0, 1), `under_relaxation` in (0, 1],
-    /// `tolerance` finite and ≥ 0 (`delay` may be any value: at or beyond the budget it is plain
-    /// PD).
+    /// `check_interval` in 1..=[`CHEBYSHEV_MAX_ITERATIONS`], `tolerance` finite and ≥ 0 (`delay`
+    /// may be any value: at or beyond the budget it is plain PD).
     pub fn validate(&self) -> Result<(), ParamError> {
         params::count_in(
             "ChebyshevParams::max_iterations",
@@ -93,6 +107,13 @@ impl ChebyshevParams {
             gamma > 0.0 && gamma <= 1.0,
             "in (0, 1]",
         )?;
+        params::count_in(
+            "ChebyshevParams::check_interval",
+            self.check_interval,
+            1,
+            CHEBYSHEV_MAX_ITERATIONS,
+            "in 1 ..= 2^24",
+        )?;
         params::non_negative("ChebyshevParams::tolerance", self.tolerance)
     }
 }
@@ -100,17 +121,22 @@ impl ChebyshevParams {
 /// The account of one accelerated solve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChebyshevReport {
-    /// Iterations performed (each one PD iteration and one evaluation of Φ).
+    /// Iterations performed (each one PD iteration; those of a rolled-back stretch included).
     pub iterations: usize,
-    /// Φ before the first iteration and after each one (J·s²), the first evaluated and the others
-    /// accumulated from the exactly computed changes ([`ProjectiveDynamics::objective_change`]),
-    /// so that changes below Φ's rounding are kept: never increasing when
-    /// [`ChebyshevParams::restart`] is on, but for a plain PD iterate's rounding.
+    /// Φ before the first iteration and at each passed check (J·s²; after every iteration
+    /// without the restart), the first evaluated and the others accumulated from the exactly
+    /// computed changes ([`ProjectiveDynamics::objective_change`]), so that changes below Φ's
+    /// rounding are kept: never increasing when [`ChebyshevParams::restart`] is on. The last is
+    /// Φ of the result.
     pub objectives: Vec<f64>,
     /// Largest position change (m) in each iteration.
     pub changes: Vec<f64>,
-    /// Restarts to plain PD (Φ rose at an extrapolated point).
+    /// Restarts to plain PD (Φ rose at a check): the last plain iterate taken instead, or the
+    /// stretch rolled back.
     pub restarts: usize,
+    /// Those restarts that rolled a stretch of iterations back to the last checked point (the
+    /// last plain iterate had raised Φ too).
+    pub rollbacks: usize,
     /// Why it stopped.
     pub stop: StopReason,
     /// Wall time of the solve.
@@ -126,6 +152,8 @@ pub struct ChebyshevPd<const D: usize> {
     previous: Vec<SVector<f64, D>>,
     current: Vec<SVector<f64, D>>,
     plain: Vec<SVector<f64, D>>,
+    /// The last point whose Φ was checked (the start, or a passed check).
+    checked: Vec<SVector<f64, D>>,
 }
 
 impl<const D: usize> ChebyshevPd<D> {
@@ -140,6 +168,7 @@ impl<const D: usize> ChebyshevPd<D> {
             previous: vec![SVector::zeros(); vertex_count],
             current: vec![SVector::zeros(); vertex_count],
             plain: vec![SVector::zeros(); vertex_count],
+            checked: vec![SVector::zeros(); vertex_count],
         })
     }
 
@@ -183,12 +212,13 @@ impl<const D: usize> ChebyshevPd<D> {
         assert_eq!(x.len(), self.current.len(), "one position per vertex");
         let start = Instant::now();
         let p = self.params;
-        let reserve = p.max_iterations.min(4096);
+        let reserve = p.max_iterations.min(HISTORY_RESERVE);
         let mut report = ChebyshevReport {
             iterations: 0,
             objectives: Vec::with_capacity(reserve + 1),
             changes: Vec::with_capacity(reserve),
             restarts: 0,
+            rollbacks: 0,
             stop: StopReason::IterationLimit,
             wall_time: Duration::ZERO,
         };
@@ -196,75 +226,113 @@ impl<const D: usize> ChebyshevPd<D> {
         let mut phi = pd.objective(springs, y, x);
         report.objectives.push(phi);
         self.previous.copy_from_slice(x);
-        let mut largest_displacement: f64 = 0.0;
-        // Iterations since the start or the last restart, and the current ω.
-        let (mut since, mut omega) = (0usize, 1.0);
+        self.checked.copy_from_slice(x);
+        // The unguarded method checks nothing: it records Φ after every iteration, to show rises.
+        let interval = if p.restart { p.check_interval } else { 1 };
+        // Iterations since the last check, and whether one of them was extrapolated.
+        let (mut unchecked, mut extrapolated_since_check) = (0usize, false);
+        // Iterations since the start or the last restart, the current ω, and the plain iterations
+        // before the extrapolation (re)starts: S, or after a rollback the whole next stretch.
+        let (mut since, mut omega, mut delay) = (0usize, 1.0, p.delay);
         let rho2 = p.rate * p.rate;
+        let gamma = p.under_relaxation;
         let mut error = FixedPointError::default();
+        let mut largest_displacement: f64 = 0.0;
         while report.iterations < p.max_iterations {
+            // previous = qₖ₋₁, current = qₖ, plain = x̂ₖ₊₁.
             self.current.copy_from_slice(x);
-            let change = pd.iteration(springs, y, x, &mut largest_displacement);
-            omega = match since.cmp(&p.delay) {
+            let plain_change = pd.iteration(springs, y, x, &mut largest_displacement);
+            let mut change = plain_change;
+            omega = match since.cmp(&delay) {
                 std::cmp::Ordering::Less => 1.0,
                 std::cmp::Ordering::Equal => 2.0 / (2.0 - rho2),
                 std::cmp::Ordering::Greater => 4.0 / (4.0 - rho2 * omega),
             };
-            let extrapolated = omega != 1.0 || p.under_relaxation != 1.0;
+            let extrapolated = omega != 1.0 || gamma != 1.0;
             if extrapolated {
                 self.plain.copy_from_slice(x);
-                let gamma = p.under_relaxation;
+                change = 0.0;
                 for &v in pd.free_vertices() {
                     let v = v as usize;
                     let (q, q_old) = (self.current[v], self.previous[v]);
                     x[v] = omega * (gamma * (self.plain[v] - q) + q - q_old) + q_old;
+                    change = change.max((x[v] - q).amax());
                 }
-                pd.limit_moves(&self.current, x);
+                if pd.has_contact() {
+                    pd.limit_moves(&self.current, x);
+                    // The position change of the point kept, not of the plain iterate.
+                    change = largest_change(pd.free_vertices(), &self.current, x);
+                }
             }
-            // Φ(x) − Φ(qₖ), exact to rounding (no cancellation of two values of Φ); NaN counts as
-            // a rise.
-            let mut rise = pd.objective_change(springs, y, &self.current, x);
-            let mut change = change;
-            if p.restart && (rise > 0.0 || rise.is_nan()) {
-                if extrapolated {
+            extrapolated_since_check |= extrapolated;
+            since += 1;
+            unchecked += 1;
+            report.iterations += 1;
+            report.changes.push(change);
+            std::mem::swap(&mut self.previous, &mut self.current);
+            let mut trial = error;
+            let small = trial.after(change) <= p.tolerance * pd.time_step();
+            let last = report.iterations == p.max_iterations;
+            if unchecked < interval && !small && !last && change.is_finite() {
+                error = trial;
+                continue;
+            }
+            // The check: Φ(x) − Φ(checked), exact to rounding (no cancellation of two values of
+            // Φ); NaN counts as a rise.
+            let rise = pd.objective_change(springs, y, &self.checked, x);
+            let rose = |rise: f64| rise > 0.0 || rise.is_nan();
+            let mut restarted = false;
+            let accepted = if !p.restart || !rose(rise) {
+                Some(rise)
+            } else if extrapolated {
+                // The last iteration's plain iterate instead, as a restart.
+                let plain_rise = pd.objective_change(springs, y, &self.checked, &self.plain);
+                (!rose(plain_rise)).then(|| {
                     x.copy_from_slice(&self.plain);
-                    rise = pd.objective_change(springs, y, &self.current, x);
-                    since = 0;
-                    omega = 1.0;
+                    *report.changes.last_mut().expect("an iteration was made") = plain_change;
+                    (since, omega, delay) = (0, 1.0, p.delay);
                     report.restarts += 1;
+                    restarted = true;
                     // The rate of the changes to come is plain PD's again.
-                    error = FixedPointError::default();
-                }
-                if rise > 0.0 || rise.is_nan() {
-                    // Even the plain iterate rose: PD is at the rounding floor of its global solve
-                    // (its positions are exact to about ε|x|). Keep qₖ and stop.
-                    x.copy_from_slice(&self.current);
-                    report.iterations += 1;
-                    report.objectives.push(phi);
-                    report.changes.push(0.0);
-                    report.stop = StopReason::Stagnated;
+                    trial = FixedPointError::default();
+                    trial.after(plain_change);
+                    plain_rise
+                })
+            } else {
+                None
+            };
+            if let Some(rise) = accepted {
+                phi += rise;
+                report.objectives.push(phi);
+                self.checked.copy_from_slice(x);
+                (unchecked, extrapolated_since_check) = (0, false);
+                error = trial;
+                if !change.is_finite() {
+                    // Unguarded only: the guard never accepts a non-finite point.
+                    report.stop = StopReason::NonFinite;
                     break;
                 }
-            } else {
-                since += 1;
-            }
-            if extrapolated {
-                // The position change of the accepted point, not of the plain iterate.
-                change = self
-                    .current
-                    .iter()
-                    .zip(x.iter())
-                    .map(|(a, b)| (a - b).amax())
-                    .fold(0.0, f64::max);
-            }
-            let phi_new = phi + rise;
-            std::mem::swap(&mut self.previous, &mut self.current);
-            phi = phi_new;
-            report.iterations += 1;
-            report.objectives.push(phi);
-            report.changes.push(change);
-            if error.after(change) <= p.tolerance * pd.time_step() {
-                report.stop = StopReason::Converged;
+                if small && !restarted {
+                    report.stop = StopReason::Converged;
+                    break;
+                }
+            } else if unchecked == 1 || !extrapolated_since_check {
+                // Plain PD from the checked point rose: PD is at the rounding floor of its global
+                // solve (its positions are exact to about ε|x|). Keep the checked point and stop.
+                x.copy_from_slice(&self.checked);
+                report.objectives.push(phi);
+                report.stop = StopReason::Stagnated;
                 break;
+            } else {
+                // Roll the stretch back to the checked point, and make the next stretch plain PD
+                // (which does not raise Φ), so that every rollback is followed by progress.
+                x.copy_from_slice(&self.checked);
+                self.previous.copy_from_slice(x);
+                (since, omega, delay) = (0, 1.0, p.delay.max(interval));
+                (unchecked, extrapolated_since_check) = (0, false);
+                report.restarts += 1;
+                report.rollbacks += 1;
+                error = FixedPointError::default();
             }
         }
         report.wall_time = start.elapsed();
@@ -303,4 +371,15 @@ impl<const D: usize> ProjectiveDynamics<D> {
         let rate = (b / a).powf(1.0 / span);
         (a > 0.0 && b > 0.0 && rate > 0.0 && rate < 1.0).then_some(rate)
     }
+}
+
+/// The largest coordinate change between `a` and `b` over the `free` vertices (m).
+pub(crate) fn largest_change<const D: usize>(
+    free: &[u32],
+    a: &[SVector<f64, D>],
+    b: &[SVector<f64, D>],
+) -> f64 {
+    free.iter()
+        .map(|&v| (a[v as usize] - b[v as usize]).amax())
+        .fold(0.0, f64::max)
 }

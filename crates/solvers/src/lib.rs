@@ -11,7 +11,8 @@
 //!   search, and an opt-in nonlinear relaxation; [`BackwardEulerStep`] is backward Euler's
 //!   problem), which returns `Result<`[`NewtonReport`]`, `[`NewtonError`]`>`;
 //! - [`ProjectiveDynamics`] for a backward Euler step, `Result<`[`PdReport`]`, `[`PdError`]`>`,
-//!   and [`ChebyshevPd`], its Chebyshev-accelerated form;
+//!   [`ChebyshevPd`], its Chebyshev-accelerated form, and [`AndersonPd`], its Anderson-accelerated
+//!   form with an energy guard;
 //! - [`Lbfgs`] (the PD matrix as initial Hessian) and [`NewtonCg`] (CG on the exact Hessian,
 //!   preconditioned by the PD factor) on a [`NewtonProblem`], with PD's factor as their
 //!   [`Preconditioner`].
@@ -43,6 +44,7 @@
 pub use faer;
 
 pub mod amg;
+pub mod anderson;
 pub mod backward_euler;
 pub mod cg;
 pub mod chebyshev;
@@ -59,6 +61,9 @@ pub mod projective;
 mod report;
 
 pub use amg::{Amg, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
+pub use anderson::{
+    AndersonParams, AndersonPd, AndersonReport, ANDERSON_MAX_ITERATIONS, ANDERSON_MAX_WINDOW,
+};
 pub use backward_euler::BackwardEulerStep;
 pub use cg::{CgParams, ConjugateGradient};
 pub use chebyshev::{ChebyshevParams, ChebyshevPd, ChebyshevReport, CHEBYSHEV_MAX_ITERATIONS};

@@ -13,9 +13,9 @@ use faer::sparse::{SparseColMat, Triplet};
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
-    Amg, AmgParams, BackwardEulerStep, BlockJacobi, CgParams, ConjugateGradient, Jacobi,
-    JacobiParams, Newton, NewtonParams, NewtonProblem, PdParams, Preconditioner,
-    ProjectiveDynamics, Relaxation, Symmetric,
+    Amg, AmgParams, AndersonParams, AndersonPd, BackwardEulerStep, BlockJacobi, CgParams,
+    ChebyshevParams, ChebyshevPd, ConjugateGradient, Jacobi, JacobiParams, Newton, NewtonParams,
+    NewtonProblem, PdParams, Preconditioner, ProjectiveDynamics, Relaxation, Symmetric,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -103,6 +103,74 @@ fn solvers_do_not_allocate_per_iteration() {
             few, many,
             "PD (parallel: {parallel}): {few} allocations in 2 iterations, {many} in 40"
         );
+    }
+
+    // Chebyshev PD (Φ checked every few iterations, with rollbacks possible) and Anderson PD (its
+    // window's history preallocated), on cloth-16 serial and parallel, and on cloth-48, whose
+    // 13,000 springs are above the size where the change of Φ sums in parallel (8,192), on a
+    // rayon thread (see `in_rayon_pool`).
+    for (n, parallel) in [(16, false), (16, true), (48, true)] {
+        let mesh = generators::cloth(n, 1e3).unwrap();
+        let pinned = [0, n as u32 - 1];
+        let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+        let y = inertial_target(mesh.positions(), &pinned, |_, x| {
+            Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
+        });
+        let pd_params = PdParams {
+            parallel,
+            ..Default::default()
+        };
+        let mut pd =
+            ProjectiveDynamics::<3>::new(mesh.springs(), mesh.masses(), &free, h, pd_params)
+                .unwrap();
+        let mut x = y.clone();
+        // The solvers are built outside the measurement: their construction sizes every buffer.
+        let mut measure = |solver: &str, max_iterations: usize| {
+            x.copy_from_slice(&y);
+            let mut chebyshev = ChebyshevPd::<3>::new(
+                mesh.vertex_count(),
+                ChebyshevParams {
+                    max_iterations,
+                    rate: 0.99,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let mut anderson = AndersonPd::<3>::new(
+                mesh.vertex_count(),
+                AndersonParams {
+                    max_iterations,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let mut count = 0;
+            in_rayon_pool(|| {
+                count = allocations(|| {
+                    let iterations = if solver == "chebyshev" {
+                        let r = chebyshev.solve(&mut pd, mesh.springs(), &y, &mut x);
+                        r.unwrap().iterations
+                    } else {
+                        let r = anderson.solve(&mut pd, mesh.springs(), &y, &mut x).unwrap();
+                        assert!(max_iterations < 10 || r.accepted > 0, "{r:?}");
+                        r.iterations
+                    };
+                    assert_eq!(iterations, max_iterations);
+                })
+            });
+            count
+        };
+        for solver in ["chebyshev", "anderson"] {
+            measure(solver, 3); // warm-up
+            let (few, many) = (
+                fewest(|| measure(solver, 2)),
+                fewest(|| measure(solver, 40)),
+            );
+            assert_eq!(
+                few, many,
+                "{solver} on cloth-{n} (parallel: {parallel}): {few} allocations in 2 iterations, {many} in 40"
+            );
+        }
     }
 
     // Newton on backward Euler, with the default relaxation and with one that never skips and

@@ -3,9 +3,9 @@
 use std::time::{Duration, Instant};
 
 use hooke_solvers::{
-    Amg, AmgParams, BackwardEulerStep, ChebyshevParams, ChebyshevPd, Convergence, Lbfgs,
-    LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport, NewtonParams, NewtonProblem,
-    PdParams, ProjectiveDynamics, Relaxation, StopReason,
+    Amg, AmgParams, AndersonParams, AndersonPd, BackwardEulerStep, ChebyshevParams, ChebyshevPd,
+    Convergence, Lbfgs, LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport,
+    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -217,6 +217,10 @@ enum Runner {
         rate: f64,
         x: Vec<Vector3<f64>>,
     },
+    Anderson {
+        pd: Box<ProjectiveDynamics<3>>,
+        x: Vec<Vector3<f64>>,
+    },
 }
 
 impl Runner {
@@ -276,6 +280,10 @@ impl Runner {
                     x: problem.y.clone(),
                 }
             }
+            SolverKind::Anderson => Runner::Anderson {
+                pd: pd()?,
+                x: problem.y.clone(),
+            },
             SolverKind::Newton
             | SolverKind::NewtonTol
             | SolverKind::NewtonRelaxed
@@ -554,6 +562,9 @@ impl Runner {
                 if report.restarts > 0 {
                     note += &format!(", {} restart(s)", report.restarts);
                 }
+                if report.rollbacks > 0 {
+                    note += &format!(" ({} rolled back)", report.rollbacks);
+                }
                 if report.stop == StopReason::Stagnated {
                     note += ", stopped where even plain PD raised Φ (its rounding floor; not converged)";
                 }
@@ -563,6 +574,29 @@ impl Runner {
                     wall: report.wall_time,
                     factor: Some(pd.factor_time()),
                     note: Some(note),
+                })
+            }
+            Runner::Anderson { pd, x } => {
+                let (max_iterations, _) = Self::limits(setting, TOLERANCE_RUN_LIMIT, (10, 0.0));
+                let params = AndersonParams {
+                    max_iterations,
+                    ..AndersonParams::default()
+                };
+                let mut solver =
+                    AndersonPd::<3>::new(x.len(), params).map_err(|e| e.to_string())?;
+                x.copy_from_slice(&problem.y);
+                let report = solver
+                    .solve(pd, springs, &problem.y, x)
+                    .map_err(|e| e.to_string())?;
+                Ok(RunResult {
+                    positions: x.clone(),
+                    iterations: report.iterations,
+                    wall: report.wall_time,
+                    factor: Some(pd.factor_time()),
+                    note: Some(format!(
+                        "window {}, {} Anderson point(s) accepted, {} refused by the energy guard",
+                        params.window, report.accepted, report.rejected
+                    )),
                 })
             }
             Runner::Linearized { solver } => {

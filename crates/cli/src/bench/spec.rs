@@ -42,6 +42,9 @@ pub enum SolverKind {
     /// `chebyshev:K`: Chebyshev-accelerated PD, K iterations, ρ estimated once per scene from 20
     /// plain PD iterations of the step (not timed, as the factorisation).
     Chebyshev,
+    /// `anderson:K`: Anderson-accelerated PD (window 8, energy guard against the plain iterate),
+    /// K iterations.
+    Anderson,
     /// `newton-cg:K`: inexact Newton (PCG on the exact Hessian, preconditioned by PD's factor,
     /// Eisenstat–Walker forcing), K Newton iterations.
     NewtonCg,
@@ -76,6 +79,7 @@ impl SolverKind {
         SolverKind::Lbfgs,
         SolverKind::LbfgsTol,
         SolverKind::Chebyshev,
+        SolverKind::Anderson,
         SolverKind::NewtonCg,
         SolverKind::NewtonCgTol,
         SolverKind::NewtonCgAmg,
@@ -100,6 +104,7 @@ impl SolverKind {
             SolverKind::Lbfgs => "lbfgs",
             SolverKind::LbfgsTol => "lbfgs-tol",
             SolverKind::Chebyshev => "chebyshev",
+            SolverKind::Anderson => "anderson",
             SolverKind::NewtonCg => "newton-cg",
             SolverKind::NewtonCgTol => "newton-cg-tol",
             SolverKind::NewtonCgAmg => "newton-cg-amg",
@@ -128,6 +133,7 @@ impl SolverKind {
             SolverKind::Lbfgs => "L-BFGS on PD's factor",
             SolverKind::LbfgsTol => "L-BFGS to a relative gradient of T",
             SolverKind::Chebyshev => "Chebyshev PD",
+            SolverKind::Anderson => "Anderson PD, window 8",
             SolverKind::NewtonCg => "inexact Newton, PCG",
             SolverKind::NewtonCgTol => "inexact Newton to a relative gradient of T",
             SolverKind::NewtonCgAmg => "inexact Newton, PCG with an AMG preconditioner",
@@ -151,6 +157,7 @@ impl SolverKind {
             | SolverKind::Jacobi
             | SolverKind::Lbfgs
             | SolverKind::Chebyshev
+            | SolverKind::Anderson
             | SolverKind::NewtonCg
             | SolverKind::NewtonCgAmg
             | SolverKind::NewtonRelaxed => Values::Iterations,
@@ -183,6 +190,7 @@ impl SolverKind {
             SolverKind::Lbfgs => iterations(&[5, 10, 20, 50, 100, 200]),
             SolverKind::LbfgsTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::Chebyshev => iterations(&[5, 10, 20, 50, 100]),
+            SolverKind::Anderson => iterations(&[5, 10, 20, 50, 100]),
             SolverKind::NewtonCg => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonCgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonCgAmg => iterations(&[1, 2, 3, 5, 10]),
@@ -239,13 +247,14 @@ pub struct SolverSpec {
 
 impl SolverSpec {
     /// The specs `hooke bench` uses when none is given, so that the table shows the whole front
-    /// from a rough step to Newton's answer: PD, Chebyshev PD and L-BFGS by iteration count,
-    /// Newton by iteration count and by tolerance, Newton-CG with AMG by tolerance, the linearised
+    /// from a rough step to Newton's answer: PD, Chebyshev PD, Anderson PD and L-BFGS by iteration
+    /// count, Newton by iteration count and by tolerance, Newton-CG with AMG by tolerance, the linearised
     /// integrator with CG by tolerance, with Jacobi by iteration count, and with its default solve.
     pub fn defaults() -> Vec<SolverSpec> {
         [
             SolverKind::Pd,
             SolverKind::Chebyshev,
+            SolverKind::Anderson,
             SolverKind::Lbfgs,
             SolverKind::Newton,
             SolverKind::NewtonTol,

@@ -302,6 +302,50 @@ fn the_restart_keeps_phi_from_rising_where_the_extrapolation_gains_energy() {
     }
 }
 
+/// The guard checks Φ every k iterations: with ρ set above plain PD's rate the extrapolation
+/// overshoots, stretches of k iterations raise Φ (5 of them are rolled back to the last checked
+/// point here, k = 6), and the solve still reaches Newton's minimiser, with Φ never rising from
+/// one check to the next.
+#[test]
+fn a_rolled_back_stretch_still_reaches_newtons_solution() {
+    let mut s = step(
+        generators::cloth(10, 1e3).unwrap(),
+        &[0, 9],
+        1.0 / 30.0,
+        0.05,
+    );
+    // Above PD's rate on this step (about 0.9986): the extrapolation overshoots.
+    let rate = 0.99995;
+    let params = ChebyshevParams {
+        max_iterations: 20000,
+        rate,
+        delay: 1,
+        check_interval: 6,
+        tolerance: 1e-10,
+        ..Default::default()
+    };
+    let (x, report) = s.solve(params);
+    let error = s.objective_error(&x);
+    eprintln!(
+        "ρ = {rate}: {} iterations, {} restarts, {} rollbacks, {:?}, objective error {error:e}",
+        report.iterations, report.restarts, report.rollbacks, report.stop
+    );
+    assert!(
+        report.rollbacks > 0,
+        "no stretch was rolled back: the case does not test the rollback"
+    );
+    for (k, w) in report.objectives.windows(2).enumerate() {
+        assert!(w[1] <= w[0], "check {k}: Φ rose from {} to {}", w[0], w[1]);
+    }
+    assert!(
+        matches!(report.stop, StopReason::Converged | StopReason::Stagnated),
+        "{:?}",
+        report.stop
+    );
+    // docs/model.md §9.2's objective error; the bound these tests hold solvers to.
+    assert!(error.abs() <= 1e-10, "objective error {error:e}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
@@ -315,9 +359,12 @@ proptest! {
         rate in 0.5f64..0.9999,
         delay in 0usize..5,
         under_relaxation in 0.5f64..=1.0,
+        check_interval in 1usize..8,
     ) {
         let mut s = step(generators::cloth(n, stiffness).unwrap(), &[0, n as u32 - 1], h, amplitude);
-        let params = ChebyshevParams { max_iterations: 40, rate, delay, under_relaxation, ..Default::default() };
+        let params = ChebyshevParams {
+            max_iterations: 40, rate, delay, under_relaxation, check_interval, ..Default::default()
+        };
         let (x, report) = s.solve(params);
         prop_assert!(x.iter().all(|p| p.iter().all(|c| c.is_finite())));
         for (k, w) in report.objectives.windows(2).enumerate() {
@@ -375,6 +422,13 @@ fn invalid_settings_are_refused_with_the_field_named() {
                 ..Default::default()
             },
             "tolerance",
+        ),
+        (
+            ChebyshevParams {
+                check_interval: 0,
+                ..Default::default()
+            },
+            "check_interval",
         ),
     ] {
         assert_eq!(
