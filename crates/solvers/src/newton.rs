@@ -15,7 +15,16 @@
 //!   raises it one, so the last iterations are exact Newton steps;
 //! - [`IndefinitePolicy::NewtonIfDescent`]: take the indefinite matrix's step when it descends,
 //!   shift otherwise (converges to a stationary point of Φ);
-//! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite.
+//! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite;
+//! - [`IndefinitePolicy::Projected`]: factor the problem's [`NewtonProblem::definite_hessian`],
+//!   made positive definite term by term before the factorisation, so that each iteration factors
+//!   once. For backward Euler this is the mass-split projection (docs/solvers.md §3.2): a share θ
+//!   of every vertex's mass is split among the compressed springs at it in proportion to their
+//!   negative curvature, each spring keeps its exact block where its share holds it and has its
+//!   negative eigenvalue weighted down to what the share holds where it does not, and the mass
+//!   left over, (1 − θ) M, is the margin of definiteness. Exact Newton wherever the masses hold
+//!   the compression, without a failed factorisation; a fallback shift (counted) only if rounding
+//!   defeats the proof.
 //!
 //! With the defaults ([`NewtonParams::default`]) a solve is: from x⁰, up to 100 iterations, each
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
@@ -159,6 +168,18 @@ pub trait NewtonProblem {
     /// problems without one (the default, `None`) are solved as under
     /// [`IndefinitePolicy::NewtonIfDescent`].
     fn convexified_hessian(&mut self, _x: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+        None
+    }
+    /// Whether [`NewtonProblem::definite_hessian`] gives a matrix. Default `false`.
+    fn has_definite_hessian(&self) -> bool {
+        false
+    }
+    /// The Hessian at x in the same pattern made positive definite term by term, before any
+    /// factorisation: each term's exact Hessian where it keeps the sum definite, a projection of
+    /// it where it may not (for backward Euler the mass-split projection of the compressed
+    /// springs, docs/solvers.md §3.2). [`IndefinitePolicy::Projected`] factors it; problems
+    /// without one (the default, `None`) are solved as under [`IndefinitePolicy::ConvexBlend`].
+    fn definite_hessian(&mut self, _x: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
         None
     }
     /// Lower Φ from `x`, in place, by the nonlinear relaxation `relaxation` describes (block
@@ -618,6 +639,34 @@ pub enum IndefinitePolicy {
     /// Always shift until the matrix is positive definite: every step minimises a convex model, at
     /// the price of linear convergence wherever the shift stays on.
     Shift,
+    /// Factor the problem's [`NewtonProblem::definite_hessian`], made positive definite term by
+    /// term before the factorisation (for backward Euler: exact spring blocks wherever a share of
+    /// the masses holds them, projected where it does not), so that each iteration factors once.
+    /// Should that matrix still fail to factor (rounding), H + μD with μ raised tenfold from
+    /// [`NewtonParams::initial_shift`] until it does, each failure counted
+    /// ([`NewtonReport::failed_factorizations`]); μ is lowered one step after every full step. For
+    /// a problem without a definite Hessian: as [`IndefinitePolicy::ConvexBlend`].
+    Projected,
+}
+
+impl IndefinitePolicy {
+    /// Every policy, in the order of their documentation.
+    pub const ALL: [IndefinitePolicy; 4] = [
+        IndefinitePolicy::ConvexBlend,
+        IndefinitePolicy::NewtonIfDescent,
+        IndefinitePolicy::Shift,
+        IndefinitePolicy::Projected,
+    ];
+
+    /// A short name for reports and options: `blend`, `descent`, `shift` or `projected`.
+    pub fn name(self) -> &'static str {
+        match self {
+            IndefinitePolicy::ConvexBlend => "blend",
+            IndefinitePolicy::NewtonIfDescent => "descent",
+            IndefinitePolicy::Shift => "shift",
+            IndefinitePolicy::Projected => "projected",
+        }
+    }
 }
 
 impl NewtonParams {
@@ -1346,6 +1395,9 @@ impl Newton {
         let start = Instant::now();
         let mut p = self.params;
         p.validate().map_err(Failure::InvalidParameter)?;
+        if p.indefinite == IndefinitePolicy::Projected && !problem.has_definite_hessian() {
+            p.indefinite = IndefinitePolicy::ConvexBlend;
+        }
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
         }
@@ -1388,7 +1440,13 @@ impl Newton {
                 return Ok(());
             }
             {
-                let h = problem.hessian(x);
+                let h = if p.indefinite == IndefinitePolicy::Projected {
+                    problem
+                        .definite_hessian(x)
+                        .expect("has_definite_hessian promised a matrix")
+                } else {
+                    problem.hessian(x)
+                };
                 assert_eq!(
                     h.val().len(),
                     self.hessian.len(),
@@ -1583,7 +1641,8 @@ impl Newton {
             }
             if alpha == longest {
                 self.shift = self.lower_shift(p.indefinite);
-            } else if alpha < 0.25 * longest {
+            } else if alpha < 0.25 * longest && p.indefinite != IndefinitePolicy::Projected {
+                // (The projected matrix is shifted only where it failed to factor.)
                 self.shift = self.raise_shift(p.indefinite).min(p.max_shift);
             }
         }

@@ -62,6 +62,7 @@ pub const HARD_INTEGRATORS: &[&str] = &[
     "linearized-jacobi",
     "newton",
     "newton-relaxed",
+    "newton-projected",
     "pd",
     "lbfgs",
     "newton-cg",
@@ -73,7 +74,8 @@ pub const HARD_INTEGRATORS: &[&str] = &[
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
      methods take the substeps their stability bound asks for (at most 1000 per frame, above \
      which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
-     (`hooke run --relaxation buckling`)";
+     (`hooke run --relaxation buckling`); newton-projected is newton factoring the Hessian made \
+     positive definite spring by spring (IndefinitePolicy::Projected)";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -362,6 +364,14 @@ pub fn hard_case_settings(
             integrator: Integrator::Newton,
             newton: NewtonParams {
                 relaxation: crate::solvers::Relaxation::BUCKLING,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
+        "newton-projected" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                indefinite: crate::solvers::IndefinitePolicy::Projected,
                 ..NewtonParams::default()
             },
             ..Settings::default()

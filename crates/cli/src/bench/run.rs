@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use hooke_solvers::{
     Amg, AmgParams, BackwardEulerStep, ChebyshevParams, ChebyshevPd, Convergence, Lbfgs,
     LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport, NewtonParams, NewtonProblem,
-    PdParams, ProjectiveDynamics, Relaxation, StopReason,
+    IndefinitePolicy, PdParams, ProjectiveDynamics, Relaxation, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -279,7 +279,9 @@ impl Runner {
             SolverKind::Newton
             | SolverKind::NewtonTol
             | SolverKind::NewtonRelaxed
-            | SolverKind::NewtonRelaxedTol => {
+            | SolverKind::NewtonRelaxedTol
+            | SolverKind::NewtonProjected
+            | SolverKind::NewtonProjectedTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
                 let relaxed = matches!(
@@ -291,6 +293,14 @@ impl Runner {
                         Relaxation::BUCKLING
                     } else {
                         Relaxation::NONE
+                    },
+                    indefinite: if matches!(
+                        kind,
+                        SolverKind::NewtonProjected | SolverKind::NewtonProjectedTol
+                    ) {
+                        IndefinitePolicy::Projected
+                    } else {
+                        NewtonParams::default().indefinite
                     },
                     ..NewtonParams::default()
                 };

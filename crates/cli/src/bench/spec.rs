@@ -58,6 +58,12 @@ pub enum SolverKind {
     NewtonRelaxed,
     /// `newton-relaxed-tol:T`: as `newton-tol`, with the relaxation.
     NewtonRelaxedTol,
+    /// `newton-projected:K`: as `newton`, factoring the Hessian made positive definite spring by
+    /// spring before the factorisation ([`crate::solvers::IndefinitePolicy::Projected`], the
+    /// mass-split projection of docs/solvers.md §3.2) instead of the convex blend.
+    NewtonProjected,
+    /// `newton-projected-tol:T`: as `newton-tol`, with the projected Hessian.
+    NewtonProjectedTol,
 }
 
 impl SolverKind {
@@ -82,6 +88,8 @@ impl SolverKind {
         SolverKind::NewtonCgAmgTol,
         SolverKind::NewtonRelaxed,
         SolverKind::NewtonRelaxedTol,
+        SolverKind::NewtonProjected,
+        SolverKind::NewtonProjectedTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -106,6 +114,8 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => "newton-cg-amg-tol",
             SolverKind::NewtonRelaxed => "newton-relaxed",
             SolverKind::NewtonRelaxedTol => "newton-relaxed-tol",
+            SolverKind::NewtonProjected => "newton-projected",
+            SolverKind::NewtonProjectedTol => "newton-projected-tol",
         }
     }
 
@@ -134,6 +144,10 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => "inexact Newton with AMG to a relative gradient of T",
             SolverKind::NewtonRelaxed => "Newton with the buckling relaxation",
             SolverKind::NewtonRelaxedTol => "relaxed Newton to a relative gradient of T",
+            SolverKind::NewtonProjected => "Newton on the spring-by-spring definite Hessian",
+            SolverKind::NewtonProjectedTol => {
+                "Newton on the definite Hessian to a relative gradient of T"
+            }
         };
         match self.values() {
             Values::Iterations => format!("{}:K,… ({what}, K iterations)", self.name()),
@@ -153,7 +167,8 @@ impl SolverKind {
             | SolverKind::Chebyshev
             | SolverKind::NewtonCg
             | SolverKind::NewtonCgAmg
-            | SolverKind::NewtonRelaxed => Values::Iterations,
+            | SolverKind::NewtonRelaxed
+            | SolverKind::NewtonProjected => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
@@ -161,7 +176,8 @@ impl SolverKind {
             | SolverKind::LbfgsTol
             | SolverKind::NewtonCgTol
             | SolverKind::NewtonCgAmgTol
-            | SolverKind::NewtonRelaxedTol => Values::Tolerances,
+            | SolverKind::NewtonRelaxedTol
+            | SolverKind::NewtonProjectedTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -189,6 +205,8 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonRelaxed => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonRelaxedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonProjected => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonProjectedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }
