@@ -647,24 +647,44 @@ pub enum IndefinitePolicy {
     /// ([`NewtonReport::failed_factorizations`]); μ is lowered one step after every full step. For
     /// a problem without a definite Hessian: as [`IndefinitePolicy::ConvexBlend`].
     Projected,
+    /// [`IndefinitePolicy::Projected`], switching to the exact Hessian near convergence (a
+    /// progressive projection): after a step taken in full, the next iteration factors the exact
+    /// Hessian; if that is not positive definite (one failed factorisation, counted), the
+    /// definite one, and the next 1, 2, 4, … 16 chances to go exact are passed over (the pause
+    /// doubles with each failure in a row and ends with a success). The first iteration of a solve
+    /// and every iteration after a shortened step factor the definite Hessian. Where the exact
+    /// Hessian is definite near the solution (the usual case), the last iterations are exact
+    /// Newton steps and converge quadratically.
+    ProjectedThenExact,
 }
 
 impl IndefinitePolicy {
     /// Every policy, in the order of their documentation.
-    pub const ALL: [IndefinitePolicy; 4] = [
+    pub const ALL: [IndefinitePolicy; 5] = [
         IndefinitePolicy::ConvexBlend,
         IndefinitePolicy::NewtonIfDescent,
         IndefinitePolicy::Shift,
         IndefinitePolicy::Projected,
+        IndefinitePolicy::ProjectedThenExact,
     ];
 
-    /// A short name for reports and options: `blend`, `descent`, `shift` or `projected`.
+    /// Whether the policy factors the problem's [`NewtonProblem::definite_hessian`].
+    pub fn is_projected(self) -> bool {
+        matches!(
+            self,
+            IndefinitePolicy::Projected | IndefinitePolicy::ProjectedThenExact
+        )
+    }
+
+    /// A short name for reports and options: `blend`, `descent`, `shift`, `projected` or
+    /// `projected-exact`.
     pub fn name(self) -> &'static str {
         match self {
             IndefinitePolicy::ConvexBlend => "blend",
             IndefinitePolicy::NewtonIfDescent => "descent",
             IndefinitePolicy::Shift => "shift",
             IndefinitePolicy::Projected => "projected",
+            IndefinitePolicy::ProjectedThenExact => "projected-exact",
         }
     }
 }
@@ -999,6 +1019,12 @@ pub struct Newton {
     /// Whether the held factor may precondition a later system (see
     /// [`Newton::forget_held_factor`]).
     reusable: bool,
+    /// Under [`IndefinitePolicy::ProjectedThenExact`]: whether the next iteration factors the exact
+    /// Hessian, and the chances to go exact still to be passed over after failed attempts, with
+    /// the length of the last such pause.
+    exact_next: bool,
+    exact_pause: u32,
+    exact_backoff: u32,
 }
 
 /// The longest pause, in chances passed over, after consecutive refused reuses.
@@ -1055,6 +1081,9 @@ impl Newton {
             reuse_pause: 0,
             reuse_backoff: 0,
             reusable: false,
+            exact_next: false,
+            exact_pause: 0,
+            exact_backoff: 0,
             params,
         })
     }
@@ -1395,7 +1424,7 @@ impl Newton {
         let start = Instant::now();
         let mut p = self.params;
         p.validate().map_err(Failure::InvalidParameter)?;
-        if p.indefinite == IndefinitePolicy::Projected && !problem.has_definite_hessian() {
+        if p.indefinite.is_projected() && !problem.has_definite_hessian() {
             p.indefinite = IndefinitePolicy::ConvexBlend;
         }
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
@@ -1411,6 +1440,9 @@ impl Newton {
         // Every solve starts from the exact Hessian: a shift earned in an earlier solve says nothing
         // about this one.
         self.shift = 0.0;
+        self.exact_next = false;
+        self.exact_pause = 0;
+        self.exact_backoff = 0;
         let finish = |r: &mut NewtonReport, stop| {
             r.stop = stop;
             r.wall_time = start.elapsed();
@@ -1439,8 +1471,12 @@ impl Newton {
                 finish(report, StopReason::IterationLimit);
                 return Ok(());
             }
+            // Whether this iteration tries the exact Hessian under ProjectedThenExact.
+            let mut exact_try = p.indefinite == IndefinitePolicy::ProjectedThenExact
+                && self.exact_next
+                && self.shift == 0.0;
             {
-                let h = if p.indefinite == IndefinitePolicy::Projected {
+                let h = if p.indefinite.is_projected() && !exact_try {
                     problem
                         .definite_hessian(x)
                         .expect("has_definite_hessian promised a matrix")
@@ -1543,6 +1579,19 @@ impl Newton {
                     }
                 }
                 failed += 1;
+                if exact_try {
+                    // The exact Hessian is not definite here: factor the definite one, and pause
+                    // before the next try.
+                    exact_try = false;
+                    self.exact_next = false;
+                    self.exact_backoff = (2 * self.exact_backoff).clamp(1, MAX_REUSE_BACKOFF);
+                    self.exact_pause = self.exact_backoff;
+                    let h = problem
+                        .definite_hessian(x)
+                        .expect("has_definite_hessian promised a matrix");
+                    self.hessian.copy_from_slice(h.val());
+                    continue;
+                }
                 let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
                     match self.search_definite_shift(problem, x, report, &mut failed)? {
                         Some(held) => {
@@ -1639,9 +1688,20 @@ impl Newton {
             if alpha == 1.0 {
                 reuse = reuse_on;
             }
+            if exact_try {
+                // An exact matrix factored: the pause after failures ends.
+                self.exact_backoff = 0;
+            }
+            if p.indefinite == IndefinitePolicy::ProjectedThenExact {
+                // Go exact after a full step, unless pausing after failed tries.
+                self.exact_next = alpha == longest && self.exact_pause == 0;
+                if alpha == longest && self.exact_pause > 0 {
+                    self.exact_pause -= 1;
+                }
+            }
             if alpha == longest {
                 self.shift = self.lower_shift(p.indefinite);
-            } else if alpha < 0.25 * longest && p.indefinite != IndefinitePolicy::Projected {
+            } else if alpha < 0.25 * longest && !p.indefinite.is_projected() {
                 // (The projected matrix is shifted only where it failed to factor.)
                 self.shift = self.raise_shift(p.indefinite).min(p.max_shift);
             }

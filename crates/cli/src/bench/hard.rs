@@ -63,6 +63,7 @@ pub const HARD_INTEGRATORS: &[&str] = &[
     "newton",
     "newton-relaxed",
     "newton-projected",
+    "newton-projected-exact",
     "pd",
     "lbfgs",
     "newton-cg",
@@ -75,7 +76,8 @@ pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except:
      methods take the substeps their stability bound asks for (at most 1000 per frame, above \
      which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
      (`hooke run --relaxation buckling`); newton-projected is newton factoring the Hessian made \
-     positive definite spring by spring (IndefinitePolicy::Projected)";
+     positive definite spring by spring (IndefinitePolicy::Projected), newton-projected-exact the \
+     same switching to the exact Hessian after full steps (IndefinitePolicy::ProjectedThenExact)";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -372,6 +374,14 @@ pub fn hard_case_settings(
             integrator: Integrator::Newton,
             newton: NewtonParams {
                 indefinite: crate::solvers::IndefinitePolicy::Projected,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
+        "newton-projected-exact" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                indefinite: crate::solvers::IndefinitePolicy::ProjectedThenExact,
                 ..NewtonParams::default()
             },
             ..Settings::default()

@@ -281,7 +281,9 @@ impl Runner {
             | SolverKind::NewtonRelaxed
             | SolverKind::NewtonRelaxedTol
             | SolverKind::NewtonProjected
-            | SolverKind::NewtonProjectedTol => {
+            | SolverKind::NewtonProjectedTol
+            | SolverKind::NewtonProjectedExact
+            | SolverKind::NewtonProjectedExactTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
                 let relaxed = matches!(
@@ -294,13 +296,14 @@ impl Runner {
                     } else {
                         Relaxation::NONE
                     },
-                    indefinite: if matches!(
-                        kind,
-                        SolverKind::NewtonProjected | SolverKind::NewtonProjectedTol
-                    ) {
-                        IndefinitePolicy::Projected
-                    } else {
-                        NewtonParams::default().indefinite
+                    indefinite: match kind {
+                        SolverKind::NewtonProjected | SolverKind::NewtonProjectedTol => {
+                            IndefinitePolicy::Projected
+                        }
+                        SolverKind::NewtonProjectedExact | SolverKind::NewtonProjectedExactTol => {
+                            IndefinitePolicy::ProjectedThenExact
+                        }
+                        _ => NewtonParams::default().indefinite,
                     },
                     ..NewtonParams::default()
                 };

@@ -64,6 +64,11 @@ pub enum SolverKind {
     NewtonProjected,
     /// `newton-projected-tol:T`: as `newton-tol`, with the projected Hessian.
     NewtonProjectedTol,
+    /// `newton-projected-exact:K`: as `newton-projected`, switching to the exact Hessian after
+    /// full steps ([`crate::solvers::IndefinitePolicy::ProjectedThenExact`]).
+    NewtonProjectedExact,
+    /// `newton-projected-exact-tol:T`: as `newton-tol`, with that policy.
+    NewtonProjectedExactTol,
 }
 
 impl SolverKind {
@@ -90,6 +95,8 @@ impl SolverKind {
         SolverKind::NewtonRelaxedTol,
         SolverKind::NewtonProjected,
         SolverKind::NewtonProjectedTol,
+        SolverKind::NewtonProjectedExact,
+        SolverKind::NewtonProjectedExactTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -116,6 +123,8 @@ impl SolverKind {
             SolverKind::NewtonRelaxedTol => "newton-relaxed-tol",
             SolverKind::NewtonProjected => "newton-projected",
             SolverKind::NewtonProjectedTol => "newton-projected-tol",
+            SolverKind::NewtonProjectedExact => "newton-projected-exact",
+            SolverKind::NewtonProjectedExactTol => "newton-projected-exact-tol",
         }
     }
 
@@ -148,6 +157,12 @@ impl SolverKind {
             SolverKind::NewtonProjectedTol => {
                 "Newton on the definite Hessian to a relative gradient of T"
             }
+            SolverKind::NewtonProjectedExact => {
+                "Newton on the definite Hessian, exact after full steps"
+            }
+            SolverKind::NewtonProjectedExactTol => {
+                "Newton, definite then exact, to a relative gradient of T"
+            }
         };
         match self.values() {
             Values::Iterations => format!("{}:K,… ({what}, K iterations)", self.name()),
@@ -168,7 +183,8 @@ impl SolverKind {
             | SolverKind::NewtonCg
             | SolverKind::NewtonCgAmg
             | SolverKind::NewtonRelaxed
-            | SolverKind::NewtonProjected => Values::Iterations,
+            | SolverKind::NewtonProjected
+            | SolverKind::NewtonProjectedExact => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
@@ -177,7 +193,8 @@ impl SolverKind {
             | SolverKind::NewtonCgTol
             | SolverKind::NewtonCgAmgTol
             | SolverKind::NewtonRelaxedTol
-            | SolverKind::NewtonProjectedTol => Values::Tolerances,
+            | SolverKind::NewtonProjectedTol
+            | SolverKind::NewtonProjectedExactTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -207,6 +224,8 @@ impl SolverKind {
             SolverKind::NewtonRelaxedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonProjected => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonProjectedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonProjectedExact => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonProjectedExactTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }
