@@ -33,7 +33,12 @@ const CHUNK: usize = 2048;
 fn demand<const D: usize>(spring: &Spring, positions: &[SVector<f64, D>], h2: f64) -> f64 {
     let (i, j) = spring.ends();
     let r = positions[i] - positions[j];
-    let terms = HessianTerms::new(spring.stiffness, spring.rest_length, &r, Definiteness::Exact);
+    let terms = HessianTerms::new(
+        spring.stiffness,
+        spring.rest_length,
+        &r,
+        Definiteness::Exact,
+    );
     if terms.across < 0.0 {
         -h2 * terms.across
     } else {
@@ -218,9 +223,26 @@ mod tests {
         let zeros = vec![0.0; springs.len()];
         let exact = assemble_with(&pattern, springs, &x, masses, None, Definiteness::Exact);
         let clamped = assemble_with(&pattern, springs, &x, masses, None, Definiteness::Clamped);
-        let one = assemble_with(&pattern, springs, &x, masses, Some(&ones), Definiteness::Exact);
-        let zero = assemble_with(&pattern, springs, &x, masses, Some(&zeros), Definiteness::Exact);
-        assert!(exact.iter().zip(&one).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let one = assemble_with(
+            &pattern,
+            springs,
+            &x,
+            masses,
+            Some(&ones),
+            Definiteness::Exact,
+        );
+        let zero = assemble_with(
+            &pattern,
+            springs,
+            &x,
+            masses,
+            Some(&zeros),
+            Definiteness::Exact,
+        );
+        assert!(exact
+            .iter()
+            .zip(&one)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
         // σ = 0 writes −0.0 · h² for the transverse term where the clamp writes +0.0: equal values.
         assert_eq!(clamped, zero);
     }
@@ -234,7 +256,13 @@ mod tests {
         let springs = mesh.springs();
         // Weights in [0, 1], 1 on every fifth spring.
         let scales: Vec<f64> = (0..springs.len())
-            .map(|s| if s % 5 == 0 { 1.0 } else { (s % 7) as f64 / 7.0 })
+            .map(|s| {
+                if s % 5 == 0 {
+                    1.0
+                } else {
+                    (s % 7) as f64 / 7.0
+                }
+            })
             .collect();
         let values = assemble_with(
             &pattern,

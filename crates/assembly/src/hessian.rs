@@ -746,7 +746,11 @@ impl<const D: usize> Refill<'_, D> {
                 // As `HessianTerms::with_across_scale`, without a branch.
                 let scaled = across < 0.0 && sigma[n] < 1.0;
                 let weighted = sigma[n] * across;
-                along = if scaled { stiffness[n] - weighted } else { along };
+                along = if scaled {
+                    stiffness[n] - weighted
+                } else {
+                    along
+                };
                 across = if scaled { weighted } else { across };
             }
             check[n] = length_squared[n] + inverse_length[n] + along + across;

@@ -47,7 +47,13 @@ fn crushed_cloth_of(n: usize, scale: f64, k: f64) -> (SpringMesh<3>, Vec<V>) {
     let x = mesh
         .positions()
         .iter()
-        .map(|p| V::new(p.x * scale, 0.04 * (9.0 * p.x + 5.0 * p.z).sin(), p.z * scale))
+        .map(|p| {
+            V::new(
+                p.x * scale,
+                0.04 * (9.0 * p.x + 5.0 * p.z).sin(),
+                p.z * scale,
+            )
+        })
         .collect();
     (mesh, x)
 }
@@ -167,7 +173,10 @@ fn the_projected_hessian_is_exact_where_the_masses_hold_it_and_projected_where_n
         })
         .count();
     let weighted = sigma.iter().filter(|&&w| w < 1.0).count();
-    assert!(compressed_exact > 0, "no compressed spring kept its exact block");
+    assert!(
+        compressed_exact > 0,
+        "no compressed spring kept its exact block"
+    );
     assert!(weighted > 0, "no spring was projected");
     assert_eq!(problem.projected_springs(), weighted);
     // The projected Hessian differs from the exact one, and is definite with the margin of the
@@ -217,7 +226,10 @@ fn where_no_spring_is_projected_it_is_the_exact_hessian_and_matches_finite_diffe
     let projected = dense(problem.definite_hessian(&unknowns).unwrap());
     assert_eq!(problem.projected_springs(), 0);
     let exact = dense(problem.hessian(&unknowns));
-    assert_eq!(projected, exact, "σ = 1 everywhere must give the exact bits");
+    assert_eq!(
+        projected, exact,
+        "σ = 1 everywhere must give the exact bits"
+    );
     // Central differences of the gradient, step 1e-6 m (the positions are of order 1 m): error
     // O(step²) · third derivative plus rounding ε |g| / step, far below 1e-6 of the entries.
     let n = unknowns.len();

@@ -3,9 +3,9 @@
 use std::time::{Duration, Instant};
 
 use hooke_solvers::{
-    Amg, AmgParams, BackwardEulerStep, ChebyshevParams, ChebyshevPd, Convergence, Lbfgs,
-    LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport, NewtonParams, NewtonProblem,
-    IndefinitePolicy, PdParams, ProjectiveDynamics, Relaxation, StopReason,
+    Amg, AmgParams, BackwardEulerStep, ChebyshevParams, ChebyshevPd, Convergence, IndefinitePolicy,
+    Lbfgs, LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport, NewtonParams,
+    NewtonProblem, PdParams, ProjectiveDynamics, Relaxation, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
