@@ -24,7 +24,10 @@
 //!   negative eigenvalue weighted down to what the share holds where it does not, and the mass
 //!   left over, (1 − θ) M, is the margin of definiteness. Exact Newton wherever the masses hold
 //!   the compression, without a failed factorisation; a fallback shift (counted) only if rounding
-//!   defeats the proof.
+//!   defeats the proof. The masses hold little on cloth, so it converges linearly there;
+//! - [`IndefinitePolicy::ProjectedThenExact`]: the same, with the exact Hessian after full steps
+//!   (a failed try counted, then a doubling pause). Both are options, not the default: measured
+//!   slower than the blend on cloth-160 and most hard cases (`benches/results/newton-definite.md`).
 //!
 //! With the defaults ([`NewtonParams::default`]) a solve is: from x⁰, up to 100 iterations, each
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
