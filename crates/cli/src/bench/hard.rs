@@ -77,9 +77,9 @@ pub const HARD_OPT_IN_INTEGRATORS: &[&str] = &["newton-projected", "newton-proje
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
      methods take the substeps their stability bound asks for (at most 1000 per frame, above \
      which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
-     (`hooke run --relaxation buckling`); newton-projected is newton factoring the Hessian made \
-     positive definite spring by spring (IndefinitePolicy::Projected), newton-projected-exact the \
-     same switching to the exact Hessian after full steps (IndefinitePolicy::ProjectedThenExact)";
+     (`hooke run --relaxation buckling`); newton-projected (by name only) is newton factoring \
+     the Hessian made positive definite spring by spring (docs/solvers.md §3.2), \
+     newton-projected-exact the same with the exact Hessian after full steps";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
