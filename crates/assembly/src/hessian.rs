@@ -185,6 +185,77 @@ impl<const D: usize> HessianPattern<D> {
         workspace: &mut HessianWorkspace<D>,
         values: &mut [f64],
     ) {
+        let mode = match params.definiteness {
+            Definiteness::Exact => EXACT,
+            Definiteness::Clamped => CLAMPED,
+        };
+        self.refill(
+            springs,
+            positions,
+            masses,
+            h,
+            (mode, &[]),
+            params.parallel,
+            workspace,
+            values,
+        );
+    }
+
+    /// [`HessianPattern::assemble_into`] with the transverse eigenvalue of every compressed spring
+    /// multiplied by its weight in `scales` (one per spring, in [0, 1]): spring s's block is
+    /// k [c' I + (1 − c') r̂r̂ᵀ] with c' = σ_s (1 − l/|r|) where 1 − l/|r| < 0 and σ_s < 1, and the
+    /// exact block (the same bits as [`Definiteness::Exact`]) everywhere else; σ_s = 0 gives the
+    /// clamped block. The longitudinal eigenvalue k is kept. With the weights of
+    /// [`HessianPattern::definite_scales`] the result is positive definite (see there). The same
+    /// refill as `assemble_into` otherwise: no allocation, the same bits serial or parallel.
+    ///
+    /// # Panics
+    /// As [`HessianPattern::assemble_into`], and if `scales` does not have one entry per spring.
+    #[allow(clippy::too_many_arguments)] // the state (springs, positions, masses, h, weights) and the buffers
+    #[track_caller]
+    pub fn assemble_scaled_into(
+        &self,
+        springs: &[Spring],
+        positions: &[SVector<f64, D>],
+        masses: &[f64],
+        h: f64,
+        scales: &[f64],
+        parallel: bool,
+        workspace: &mut HessianWorkspace<D>,
+        values: &mut [f64],
+    ) {
+        assert_eq!(
+            scales.len(),
+            springs.len(),
+            "assemble_scaled_into: one weight per spring"
+        );
+        self.refill(
+            springs,
+            positions,
+            masses,
+            h,
+            (SCALED, scales),
+            parallel,
+            workspace,
+            values,
+        );
+    }
+
+    /// The refill of [`HessianPattern::assemble_into`] and [`HessianPattern::assemble_scaled_into`]
+    /// (`mode`: [`EXACT`], [`CLAMPED`] or [`SCALED`] with its weights), checks included.
+    #[allow(clippy::too_many_arguments)]
+    #[track_caller]
+    fn refill(
+        &self,
+        springs: &[Spring],
+        positions: &[SVector<f64, D>],
+        masses: &[f64],
+        h: f64,
+        (mode, scales): (u8, &[f64]),
+        parallel: bool,
+        workspace: &mut HessianWorkspace<D>,
+        values: &mut [f64],
+    ) {
         let free = self.graph.free();
         assert_eq!(
             springs.len(),
@@ -211,30 +282,38 @@ impl<const D: usize> HessianPattern<D> {
             self.nnz(),
             "assemble_into: one value per stored entry"
         );
-        let parallel = params.parallel && springs.len() >= PARALLEL_THRESHOLD;
+        let parallel = parallel && springs.len() >= PARALLEL_THRESHOLD;
         let refill = Refill {
             graph: &self.graph,
             schedule: &self.schedule,
             springs,
             positions,
             masses,
+            scales,
             h2: h * h,
             prefetch: values.len() >= PREFETCH_MIN_VALUES,
         };
         let ring_offsets = Some(self.schedule.ring_offsets());
         let ring = &mut workspace.ring;
         // One copy of the loop per variant, so that the choice is not made per spring.
-        match params.definiteness {
-            Definiteness::Exact => {
+        match mode {
+            EXACT => {
                 let fill = |columns, values: &mut [f64], ring: &mut [[f64; PACKED]]| {
-                    refill.leaf::<false>(columns, values, ring)
+                    refill.leaf::<EXACT>(columns, values, ring)
                 };
                 self.graph
                     .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
             }
-            Definiteness::Clamped => {
+            CLAMPED => {
                 let fill = |columns, values: &mut [f64], ring: &mut [[f64; PACKED]]| {
-                    refill.leaf::<true>(columns, values, ring)
+                    refill.leaf::<CLAMPED>(columns, values, ring)
+                };
+                self.graph
+                    .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
+            }
+            _ => {
+                let fill = |columns, values: &mut [f64], ring: &mut [[f64; PACKED]]| {
+                    refill.leaf::<SCALED>(columns, values, ring)
                 };
                 self.graph
                     .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
@@ -460,6 +539,8 @@ struct Refill<'a, const D: usize> {
     springs: &'a [Spring],
     positions: &'a [SVector<f64, D>],
     masses: &'a [f64],
+    /// The weights of [`SCALED`] (empty otherwise).
+    scales: &'a [f64],
     h2: f64,
     /// Whether to prefetch the value array ahead of the writes (large arrays only).
     prefetch: bool,
@@ -469,7 +550,7 @@ impl<const D: usize> Refill<'_, D> {
     /// Fill the values of the leaf `columns` (see [`RefillSchedule`]): spring blocks are computed
     /// [`BATCH`] at a time, up to `BATCH − 1` computes ahead of the column that needs them (the ring
     /// has that much slack), then each column gathers its blocks from the ring.
-    fn leaf<const CLAMPED: bool>(
+    fn leaf<const MODE: u8>(
         &self,
         columns: Range<usize>,
         values: &mut [f64],
@@ -504,14 +585,14 @@ impl<const D: usize> Refill<'_, D> {
                     let out: &mut [[f64; PACKED]; BATCH] = (&mut ring[slot..slot + BATCH])
                         .try_into()
                         .expect("BATCH slots");
-                    self.blocks::<BATCH, CLAMPED>(batch, out);
+                    self.blocks::<BATCH, MODE>(batch, out);
                     done += BATCH;
                     slot += BATCH;
                 } else {
                     // The last few computes of the leaf.
                     let out: &mut [[f64; PACKED]; 1] =
                         (&mut ring[slot..slot + 1]).try_into().expect("one slot");
-                    self.blocks::<1, CLAMPED>(&[computes[done]], out);
+                    self.blocks::<1, MODE>(&[computes[done]], out);
                     done += 1;
                     slot += 1;
                 }
@@ -609,7 +690,7 @@ impl<const D: usize> Refill<'_, D> {
     /// overflowing block (`HessianTerms` then substitutes its stand-in), the N springs are redone
     /// one by one through `HessianTerms`. The same bits as one spring at a time.
     #[inline(always)]
-    fn blocks<const N: usize, const CLAMPED: bool>(
+    fn blocks<const N: usize, const MODE: u8>(
         &self,
         indices: &[u32; N],
         out: &mut [[f64; PACKED]; N],
@@ -649,12 +730,29 @@ impl<const D: usize> Refill<'_, D> {
         // fast path of `HessianTerms` (|r|² positive and finite, along and across finite); a finite
         // sum that overflows only makes the test cautious.
         let mut check = [0.0; N];
+        let mut sigma = [1.0; N];
+        if MODE == SCALED {
+            for n in 0..N {
+                sigma[n] = self.scales[indices[n] as usize];
+            }
+        }
         for n in 0..N {
             let ratio = rest_length[n] * inverse_length[n];
-            let clamp = CLAMPED && ratio > 1.0;
+            let clamp = MODE == CLAMPED && ratio > 1.0;
             let across = if clamp { 0.0 } else { 1.0 - ratio };
             let along = if clamp { 1.0 } else { ratio };
-            let (along, across) = (stiffness[n] * along, stiffness[n] * across);
+            let (mut along, mut across) = (stiffness[n] * along, stiffness[n] * across);
+            if MODE == SCALED {
+                // As `HessianTerms::with_across_scale`, without a branch.
+                let scaled = across < 0.0 && sigma[n] < 1.0;
+                let weighted = sigma[n] * across;
+                along = if scaled {
+                    stiffness[n] - weighted
+                } else {
+                    along
+                };
+                across = if scaled { weighted } else { across };
+            }
             check[n] = length_squared[n] + inverse_length[n] + along + across;
             p[n] = -self.h2 * along;
             q[n] = -self.h2 * across;
@@ -685,7 +783,7 @@ impl<const D: usize> Refill<'_, D> {
             }
         }
         if !fast {
-            let definiteness = if CLAMPED {
+            let definiteness = if MODE == CLAMPED {
                 Definiteness::Clamped
             } else {
                 Definiteness::Exact
@@ -694,7 +792,10 @@ impl<const D: usize> Refill<'_, D> {
                 let s = &self.springs[indices[n] as usize];
                 let (i, j) = s.ends();
                 let r = self.positions[i] - self.positions[j];
-                let t = HessianTerms::new(s.stiffness, s.rest_length, &r, definiteness);
+                let mut t = HessianTerms::new(s.stiffness, s.rest_length, &r, definiteness);
+                if MODE == SCALED {
+                    t = t.with_across_scale(s.stiffness, sigma[n]);
+                }
                 let (p, q) = (-self.h2 * t.along, -self.h2 * t.across);
                 for b in 0..D {
                     for a in 0..=b {
@@ -735,6 +836,14 @@ fn prefetch_ahead(rest: &[f64], len: usize) {
     #[cfg(not(target_arch = "x86_64"))]
     let _ = (rest, len);
 }
+
+/// The refill's spring blocks: exact ([`Definiteness::Exact`]).
+const EXACT: u8 = 0;
+/// Clamped ([`Definiteness::Clamped`]).
+const CLAMPED: u8 = 1;
+/// Exact with the compressed springs' transverse eigenvalues weighted
+/// ([`HessianPattern::assemble_scaled_into`]).
+const SCALED: u8 = 2;
 
 /// Springs whose blocks a refill computes together.
 pub(crate) const BATCH: usize = 4;

@@ -15,6 +15,7 @@
 
 pub mod contact;
 mod counter_force;
+mod definite;
 mod dofs;
 mod error;
 pub mod fd;

@@ -202,6 +202,24 @@ impl<const D: usize> HessianTerms<D> {
         }
     }
 
+    /// These terms with a negative transverse eigenvalue (a compressed spring) multiplied by
+    /// `scale` where `scale` < 1 (`stiffness` k: the longitudinal eigenvalue along + across = k is
+    /// kept): across' = scale · across, along' = k − across'. Unchanged otherwise (stretched springs
+    /// and the stand-in, whose eigenvalues are not negative). `scale` = 0 gives the clamped terms.
+    #[inline]
+    pub fn with_across_scale(self, stiffness: f64, scale: f64) -> Self {
+        if self.across < 0.0 && scale < 1.0 {
+            let across = scale * self.across;
+            HessianTerms {
+                unit: self.unit,
+                along: stiffness - across,
+                across,
+            }
+        } else {
+            self
+        }
+    }
+
     /// along · ûûᵀ + across · I, exactly symmetric (entry (a, b) and (b, a) are the same product).
     #[inline]
     pub fn block(&self) -> SMatrix<f64, D, D> {

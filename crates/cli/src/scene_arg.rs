@@ -159,8 +159,9 @@ pub(crate) fn hard_case_help() -> String {
 pub(crate) fn hard_integrator_help() -> String {
     format!(
         "With --hard-cases: run only this integrator (repeatable; default: every one of the \
-         matrix: {})",
-        crate::bench::HARD_INTEGRATORS.join(", ")
+         matrix: {}; also, by name only: {})",
+        crate::bench::HARD_INTEGRATORS.join(", "),
+        crate::bench::HARD_OPT_IN_INTEGRATORS.join(", ")
     )
 }
 

@@ -6,6 +6,8 @@ use hooke_assembly::{
     CounterForce, Definiteness, FreeDofs, HessianPattern, HessianWorkspace, SpringForces,
 };
 use hooke_mesh::Spring;
+
+use crate::params::ParamError;
 use nalgebra::SVector;
 
 mod contact;
@@ -15,6 +17,10 @@ mod relaxation;
 use contact::StepContact;
 pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
+
+/// The default θ of [`BackwardEulerStep::set_definite_share`]: half of every vertex's mass may
+/// hold its compressed springs, half is kept as the margin of definiteness.
+pub const DEFAULT_DEFINITE_SHARE: f64 = 0.5;
 
 /// The nonlinear elimination stops a region's solve at this many times its gradient's rounding
 /// error ([`crate::NewtonProblem::gradient_round_off`]).
@@ -106,6 +112,13 @@ pub struct BackwardEulerStep<const D: usize> {
     /// The lengths of one vertex's springs, for the relaxation's line search.
     incident_lengths: Vec<f64>,
     definiteness: Definiteness,
+    /// θ of the mass-split projection ([`BackwardEulerStep::set_definite_share`]), its loads (one
+    /// per block column of the pattern), its per-spring weights, and how many springs the last
+    /// projected assembly weighted down.
+    definite_share: f64,
+    loads: Vec<f64>,
+    scales: Vec<f64>,
+    projected_springs: usize,
     /// Run the per-spring loops (energy, forces, Hessian) with rayon; the same bits either way.
     parallel: bool,
     h: f64,
@@ -211,6 +224,10 @@ impl<const D: usize> BackwardEulerStep<D> {
             patches: None,
             incident_lengths: vec![0.0; max_degree],
             definiteness: Definiteness::Exact,
+            definite_share: DEFAULT_DEFINITE_SHARE,
+            loads: vec![0.0; pattern.dof_count() / D],
+            scales: vec![1.0; springs.len()],
+            projected_springs: 0,
             parallel: true,
             h,
             y: vec![SVector::zeros(); n],
@@ -471,6 +488,35 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// convergence where springs are compressed).
     pub fn set_definiteness(&mut self, definiteness: Definiteness) {
         self.definiteness = definiteness;
+    }
+
+    /// Set θ, the share of every vertex's mass that the mass-split projection of
+    /// [`crate::NewtonProblem::definite_hessian`] may spend on holding the compressed springs at
+    /// it (docs/solvers.md §3.2): in [0, 1); larger keeps more springs exact, and leaves a
+    /// smaller margin (1 − θ) M of definiteness. Default [`DEFAULT_DEFINITE_SHARE`].
+    ///
+    /// # Errors
+    /// [`ParamError`] if `share` is not in [0, 1).
+    pub fn set_definite_share(&mut self, share: f64) -> Result<(), ParamError> {
+        crate::params::real(
+            "BackwardEulerStep::definite_share",
+            share,
+            (0.0..1.0).contains(&share),
+            "in [0, 1)",
+        )?;
+        self.definite_share = share;
+        Ok(())
+    }
+
+    /// θ of the mass-split projection ([`BackwardEulerStep::set_definite_share`]).
+    pub fn definite_share(&self) -> f64 {
+        self.definite_share
+    }
+
+    /// How many compressed springs the last [`crate::NewtonProblem::definite_hessian`] weighted
+    /// down (projected partly or wholly); the others had their exact blocks.
+    pub fn projected_springs(&self) -> usize {
+        self.projected_springs
     }
 
     /// The full positions for the unknowns `xf` (pinned vertices as set by

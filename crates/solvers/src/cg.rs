@@ -1,4 +1,4 @@
-//! Preconditioned conjugate gradient (docs/solvers.md §2.1) for symmetric positive definite
+//! Preconditioned conjugate gradient (docs/solvers.md §3.2) for symmetric positive definite
 //! systems.
 
 use std::time::Instant;

@@ -15,7 +15,19 @@
 //!   raises it one, so the last iterations are exact Newton steps;
 //! - [`IndefinitePolicy::NewtonIfDescent`]: take the indefinite matrix's step when it descends,
 //!   shift otherwise (converges to a stationary point of Φ);
-//! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite.
+//! - [`IndefinitePolicy::Shift`]: H + μD (D the masses), μ raised tenfold until positive definite;
+//! - [`IndefinitePolicy::Projected`]: factor the problem's [`NewtonProblem::definite_hessian`],
+//!   made positive definite term by term before the factorisation, so that each iteration factors
+//!   once. For backward Euler this is the mass-split projection (docs/solvers.md §3.2): a share θ
+//!   of every vertex's mass is split among the compressed springs at it in proportion to their
+//!   negative curvature, each spring keeps its exact block where its share holds it and has its
+//!   negative eigenvalue weighted down to what the share holds where it does not, and the mass
+//!   left over, (1 − θ) M, is the margin of definiteness. Exact Newton wherever the masses hold
+//!   the compression, without a failed factorisation; a fallback shift (counted) only if rounding
+//!   defeats the proof. The masses hold little on cloth, so it converges linearly there;
+//! - [`IndefinitePolicy::ProjectedThenExact`]: the same, with the exact Hessian after full steps
+//!   (a failed try counted, then a doubling pause). Both are options, not the default: measured
+//!   slower than the blend on cloth-160 and most hard cases (`benches/results/newton-definite.md`).
 //!
 //! With the defaults ([`NewtonParams::default`]) a solve is: from x⁰, up to 100 iterations, each
 //! one LLᵀ factorisation of the convex blend above (β = 0, the exact Hessian, whenever it is
@@ -167,6 +179,18 @@ pub trait NewtonProblem {
     /// §2.5); backward Euler in 3D: 3 and the rigid-body modes at x. Default `None`: scalar
     /// blocks and the constant vector.
     fn near_nullspace(&self, _x: &[f64]) -> Option<(usize, Vec<f64>)> {
+        None
+    }
+    /// Whether [`NewtonProblem::definite_hessian`] gives a matrix. Default `false`.
+    fn has_definite_hessian(&self) -> bool {
+        false
+    }
+    /// The Hessian at x in the same pattern made positive definite term by term, before any
+    /// factorisation: each term's exact Hessian where it keeps the sum definite, a projection of
+    /// it where it may not (for backward Euler the mass-split projection of the compressed
+    /// springs, docs/solvers.md §3.2). [`IndefinitePolicy::Projected`] factors it; problems
+    /// without one (the default, `None`) are solved as under [`IndefinitePolicy::ConvexBlend`].
+    fn definite_hessian(&mut self, _x: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
         None
     }
     /// Lower Φ from `x`, in place, by the nonlinear relaxation `relaxation` describes (block
@@ -626,6 +650,54 @@ pub enum IndefinitePolicy {
     /// Always shift until the matrix is positive definite: every step minimises a convex model, at
     /// the price of linear convergence wherever the shift stays on.
     Shift,
+    /// Factor the problem's [`NewtonProblem::definite_hessian`], made positive definite term by
+    /// term before the factorisation (for backward Euler: exact spring blocks wherever a share of
+    /// the masses holds them, projected where it does not), so that each iteration factors once.
+    /// Should that matrix still fail to factor (rounding), H + μD with μ raised tenfold from
+    /// [`NewtonParams::initial_shift`] until it does, each failure counted
+    /// ([`NewtonReport::failed_factorizations`]); μ is lowered one step after every full step. For
+    /// a problem without a definite Hessian: as [`IndefinitePolicy::ConvexBlend`].
+    Projected,
+    /// [`IndefinitePolicy::Projected`], switching to the exact Hessian near convergence (a
+    /// progressive projection): after a step taken in full, the next iteration factors the exact
+    /// Hessian; if that is not positive definite (one failed factorisation, counted), the
+    /// definite one, and the next 1, 2, 4, … 16 chances to go exact are passed over (the pause
+    /// doubles with each failure in a row and ends with a success). The first iteration of a solve
+    /// and every iteration after a shortened step factor the definite Hessian. Where the exact
+    /// Hessian is definite near the solution (the usual case), the last iterations are exact
+    /// Newton steps and converge quadratically.
+    ProjectedThenExact,
+}
+
+impl IndefinitePolicy {
+    /// Every policy, in the order of their documentation.
+    pub const ALL: [IndefinitePolicy; 5] = [
+        IndefinitePolicy::ConvexBlend,
+        IndefinitePolicy::NewtonIfDescent,
+        IndefinitePolicy::Shift,
+        IndefinitePolicy::Projected,
+        IndefinitePolicy::ProjectedThenExact,
+    ];
+
+    /// Whether the policy factors the problem's [`NewtonProblem::definite_hessian`].
+    pub fn is_projected(self) -> bool {
+        matches!(
+            self,
+            IndefinitePolicy::Projected | IndefinitePolicy::ProjectedThenExact
+        )
+    }
+
+    /// A short name for reports and options: `blend`, `descent`, `shift`, `projected` or
+    /// `projected-exact`.
+    pub fn name(self) -> &'static str {
+        match self {
+            IndefinitePolicy::ConvexBlend => "blend",
+            IndefinitePolicy::NewtonIfDescent => "descent",
+            IndefinitePolicy::Shift => "shift",
+            IndefinitePolicy::Projected => "projected",
+            IndefinitePolicy::ProjectedThenExact => "projected-exact",
+        }
+    }
 }
 
 impl NewtonParams {
@@ -959,6 +1031,12 @@ pub struct Newton {
     /// Whether the held factor may precondition a later system (see
     /// [`Newton::forget_held_factor`]).
     reusable: bool,
+    /// Under [`IndefinitePolicy::ProjectedThenExact`]: whether the next iteration factors the exact
+    /// Hessian, and the chances to go exact still to be passed over after failed attempts, with
+    /// the length of the last such pause.
+    exact_next: bool,
+    exact_pause: u32,
+    exact_backoff: u32,
 }
 
 /// The longest pause, in chances passed over, after consecutive refused reuses.
@@ -1017,6 +1095,9 @@ impl Newton {
             reuse_pause: 0,
             reuse_backoff: 0,
             reusable: false,
+            exact_next: false,
+            exact_pause: 0,
+            exact_backoff: 0,
             params,
         })
     }
@@ -1387,6 +1468,9 @@ impl Newton {
         let start = Instant::now();
         let mut p = self.params;
         p.validate().map_err(Failure::InvalidParameter)?;
+        if p.indefinite.is_projected() && !problem.has_definite_hessian() {
+            p.indefinite = IndefinitePolicy::ConvexBlend;
+        }
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
         }
@@ -1400,6 +1484,9 @@ impl Newton {
         // Every solve starts from the exact Hessian: a shift earned in an earlier solve says nothing
         // about this one.
         self.shift = 0.0;
+        self.exact_next = false;
+        self.exact_pause = 0;
+        self.exact_backoff = 0;
         let finish = |r: &mut NewtonReport, stop| {
             r.stop = stop;
             r.wall_time = start.elapsed();
@@ -1428,8 +1515,18 @@ impl Newton {
                 finish(report, StopReason::IterationLimit);
                 return Ok(());
             }
+            // Whether this iteration tries the exact Hessian under ProjectedThenExact.
+            let mut exact_try = p.indefinite == IndefinitePolicy::ProjectedThenExact
+                && self.exact_next
+                && self.shift == 0.0;
             {
-                let h = problem.hessian(x);
+                let h = if p.indefinite.is_projected() && !exact_try {
+                    problem
+                        .definite_hessian(x)
+                        .expect("has_definite_hessian promised a matrix")
+                } else {
+                    problem.hessian(x)
+                };
                 assert_eq!(
                     h.val().len(),
                     self.hessian.len(),
@@ -1526,6 +1623,19 @@ impl Newton {
                     }
                 }
                 failed += 1;
+                if exact_try {
+                    // The exact Hessian is not definite here: factor the definite one, and pause
+                    // before the next try.
+                    exact_try = false;
+                    self.exact_next = false;
+                    self.exact_backoff = (2 * self.exact_backoff).clamp(1, MAX_REUSE_BACKOFF);
+                    self.exact_pause = self.exact_backoff;
+                    let h = problem
+                        .definite_hessian(x)
+                        .expect("has_definite_hessian promised a matrix");
+                    self.hessian.copy_from_slice(h.val());
+                    continue;
+                }
                 let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
                     match self.search_definite_shift(problem, x, report, &mut failed)? {
                         Some(held) => {
@@ -1622,9 +1732,21 @@ impl Newton {
             if alpha == 1.0 {
                 reuse = reuse_on;
             }
+            if exact_try {
+                // An exact matrix factored: the pause after failures ends.
+                self.exact_backoff = 0;
+            }
+            if p.indefinite == IndefinitePolicy::ProjectedThenExact {
+                // Go exact after a full step, unless pausing after failed tries.
+                self.exact_next = alpha == longest && self.exact_pause == 0;
+                if alpha == longest && self.exact_pause > 0 {
+                    self.exact_pause -= 1;
+                }
+            }
             if alpha == longest {
                 self.shift = self.lower_shift(p.indefinite);
-            } else if alpha < 0.25 * longest {
+            } else if alpha < 0.25 * longest && !p.indefinite.is_projected() {
+                // (The projected matrix is shifted only where it failed to factor.)
                 self.shift = self.raise_shift(p.indefinite).min(p.max_shift);
             }
         }

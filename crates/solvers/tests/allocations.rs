@@ -213,6 +213,36 @@ fn solvers_do_not_allocate_per_iteration() {
         );
     }
 
+    // Newton on the Hessian made definite spring by spring (its loads and weights are buffers of
+    // the step), and the progressive policy that switches to the exact Hessian.
+    for indefinite in [
+        hooke_solvers::IndefinitePolicy::Projected,
+        hooke_solvers::IndefinitePolicy::ProjectedThenExact,
+    ] {
+        let mut step = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free.clone(), h);
+        let params = NewtonParams {
+            indefinite,
+            ..NewtonParams::default()
+        };
+        let mut newton = Newton::new(step.pattern(), params).unwrap();
+        let mut unknowns = vec![0.0; step.dim()];
+        let mut run = |iterations: usize| {
+            newton.params.max_iterations = iterations;
+            newton.params.tolerance = 0.0;
+            step.set_step(&y, mesh.positions(), &mut unknowns);
+            allocations(|| {
+                let report = newton.minimize(&mut step, &mut unknowns).unwrap();
+                assert_eq!(report.iterations, iterations);
+            })
+        };
+        run(2);
+        let (few, many) = (fewest(|| run(1)), fewest(|| run(4)));
+        assert_eq!(
+            few, many,
+            "Newton ({indefinite:?}): {few} allocations in 1 iteration, {many} in 4"
+        );
+    }
+
     // Once its patches are built, an elimination allocates nothing at all: not in its set-up,
     // whose work does not depend on the inner iterations, nor in the inner Newton's iterations.
     {

@@ -68,12 +68,18 @@ pub const HARD_INTEGRATORS: &[&str] = &[
     "pd-chebyshev",
 ];
 
+/// Integrators [`hard_case_settings`] also accepts, by `--hard-integrator NAME` only (not in the
+/// default matrix): Newton under the projected indefinite policies (docs/solvers.md §3.2).
+pub const HARD_OPT_IN_INTEGRATORS: &[&str] = &["newton-projected", "newton-projected-exact"];
+
 /// The settings [`hard_case_settings`] changes from the library's defaults ([`Settings::default`]
 /// with the integrator chosen), printed with the matrix ([`crate::bench::format_hard_cases`]).
 pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except: explicit \
      methods take the substeps their stability bound asks for (at most 1000 per frame, above \
      which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
-     (`hooke run --relaxation buckling`)";
+     (`hooke run --relaxation buckling`); newton-projected (by name only) is newton factoring \
+     the Hessian made positive definite spring by spring (docs/solvers.md §3.2), \
+     newton-projected-exact the same with the exact Hessian after full steps";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -366,6 +372,22 @@ pub fn hard_case_settings(
             },
             ..Settings::default()
         },
+        "newton-projected" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                indefinite: crate::solvers::IndefinitePolicy::Projected,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
+        "newton-projected-exact" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                indefinite: crate::solvers::IndefinitePolicy::ProjectedThenExact,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
         "pd" => Settings {
             integrator: Integrator::ProjectiveDynamics,
             ..Settings::default()
@@ -385,7 +407,12 @@ pub fn hard_case_settings(
         other => {
             return Err(BenchError::Scene(format!(
                 "unknown integrator {other:?} for the hard cases; expected one of: {}",
-                HARD_INTEGRATORS.join(", ")
+                HARD_INTEGRATORS
+                    .iter()
+                    .chain(HARD_OPT_IN_INTEGRATORS)
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )))
         }
     })

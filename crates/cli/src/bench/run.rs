@@ -4,8 +4,9 @@ use std::time::{Duration, Instant};
 
 use hooke_solvers::{
     Amg, AmgParams, AndersonParams, AndersonPd, BackwardEulerStep, ChebyshevParams, ChebyshevPd,
-    Convergence, Lbfgs, LbfgsParams, Newton, NewtonCg, NewtonCgParams, NewtonCgReport,
-    NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation, StopReason,
+    Convergence, IndefinitePolicy, Lbfgs, LbfgsParams, Newton, NewtonCg, NewtonCgParams,
+    NewtonCgReport, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation,
+    StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -287,7 +288,11 @@ impl Runner {
             SolverKind::Newton
             | SolverKind::NewtonTol
             | SolverKind::NewtonRelaxed
-            | SolverKind::NewtonRelaxedTol => {
+            | SolverKind::NewtonRelaxedTol
+            | SolverKind::NewtonProjected
+            | SolverKind::NewtonProjectedTol
+            | SolverKind::NewtonProjectedExact
+            | SolverKind::NewtonProjectedExactTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
                 let relaxed = matches!(
@@ -299,6 +304,15 @@ impl Runner {
                         Relaxation::BUCKLING
                     } else {
                         Relaxation::NONE
+                    },
+                    indefinite: match kind {
+                        SolverKind::NewtonProjected | SolverKind::NewtonProjectedTol => {
+                            IndefinitePolicy::Projected
+                        }
+                        SolverKind::NewtonProjectedExact | SolverKind::NewtonProjectedExactTol => {
+                            IndefinitePolicy::ProjectedThenExact
+                        }
+                        _ => NewtonParams::default().indefinite,
                     },
                     ..NewtonParams::default()
                 };

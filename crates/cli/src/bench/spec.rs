@@ -61,6 +61,17 @@ pub enum SolverKind {
     NewtonRelaxed,
     /// `newton-relaxed-tol:T`: as `newton-tol`, with the relaxation.
     NewtonRelaxedTol,
+    /// `newton-projected:K`: as `newton`, factoring the Hessian made positive definite spring by
+    /// spring before the factorisation ([`crate::solvers::IndefinitePolicy::Projected`], the
+    /// mass-split projection of docs/solvers.md §3.2) instead of the convex blend.
+    NewtonProjected,
+    /// `newton-projected-tol:T`: as `newton-tol`, with the projected Hessian.
+    NewtonProjectedTol,
+    /// `newton-projected-exact:K`: as `newton-projected`, switching to the exact Hessian after
+    /// full steps ([`crate::solvers::IndefinitePolicy::ProjectedThenExact`]).
+    NewtonProjectedExact,
+    /// `newton-projected-exact-tol:T`: as `newton-tol`, with that policy.
+    NewtonProjectedExactTol,
 }
 
 impl SolverKind {
@@ -86,6 +97,10 @@ impl SolverKind {
         SolverKind::NewtonCgAmgTol,
         SolverKind::NewtonRelaxed,
         SolverKind::NewtonRelaxedTol,
+        SolverKind::NewtonProjected,
+        SolverKind::NewtonProjectedTol,
+        SolverKind::NewtonProjectedExact,
+        SolverKind::NewtonProjectedExactTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -111,6 +126,10 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => "newton-cg-amg-tol",
             SolverKind::NewtonRelaxed => "newton-relaxed",
             SolverKind::NewtonRelaxedTol => "newton-relaxed-tol",
+            SolverKind::NewtonProjected => "newton-projected",
+            SolverKind::NewtonProjectedTol => "newton-projected-tol",
+            SolverKind::NewtonProjectedExact => "newton-projected-exact",
+            SolverKind::NewtonProjectedExactTol => "newton-projected-exact-tol",
         }
     }
 
@@ -140,6 +159,16 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => "inexact Newton with AMG to a relative gradient of T",
             SolverKind::NewtonRelaxed => "Newton with the buckling relaxation",
             SolverKind::NewtonRelaxedTol => "relaxed Newton to a relative gradient of T",
+            SolverKind::NewtonProjected => "Newton on the spring-by-spring definite Hessian",
+            SolverKind::NewtonProjectedTol => {
+                "Newton on the definite Hessian to a relative gradient of T"
+            }
+            SolverKind::NewtonProjectedExact => {
+                "Newton on the definite Hessian, exact after full steps"
+            }
+            SolverKind::NewtonProjectedExactTol => {
+                "Newton, definite then exact, to a relative gradient of T"
+            }
         };
         match self.values() {
             Values::Iterations => format!("{}:K,… ({what}, K iterations)", self.name()),
@@ -160,7 +189,9 @@ impl SolverKind {
             | SolverKind::Anderson
             | SolverKind::NewtonCg
             | SolverKind::NewtonCgAmg
-            | SolverKind::NewtonRelaxed => Values::Iterations,
+            | SolverKind::NewtonRelaxed
+            | SolverKind::NewtonProjected
+            | SolverKind::NewtonProjectedExact => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
@@ -168,7 +199,9 @@ impl SolverKind {
             | SolverKind::LbfgsTol
             | SolverKind::NewtonCgTol
             | SolverKind::NewtonCgAmgTol
-            | SolverKind::NewtonRelaxedTol => Values::Tolerances,
+            | SolverKind::NewtonRelaxedTol
+            | SolverKind::NewtonProjectedTol
+            | SolverKind::NewtonProjectedExactTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -197,6 +230,10 @@ impl SolverKind {
             SolverKind::NewtonCgAmgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonRelaxed => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonRelaxedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonProjected => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonProjectedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonProjectedExact => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonProjectedExactTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }

@@ -219,7 +219,11 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
-        self.assemble(xf, self.definiteness)
+        let blocks = match self.definiteness {
+            Definiteness::Exact => SpringBlocks::Exact,
+            Definiteness::Clamped => SpringBlocks::Clamped,
+        };
+        self.assemble(xf, blocks)
     }
 
     fn shift_diagonal(&self) -> &[f64] {
@@ -263,7 +267,23 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     /// The Hessian with the clamped spring blocks ([`Definiteness::Clamped`]): positive definite
     /// with the masses.
     fn convexified_hessian(&mut self, xf: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
-        Some(self.assemble(xf, Definiteness::Clamped))
+        Some(self.assemble(xf, SpringBlocks::Clamped))
+    }
+
+    fn has_definite_hessian(&self) -> bool {
+        true
+    }
+
+    /// The Hessian with the mass-split projection of the compressed springs (docs/solvers.md
+    /// §2.1): every spring's exact block where its ends' share
+    /// [`BackwardEulerStep::definite_share`] of their masses holds its negative transverse
+    /// eigenvalue, that eigenvalue weighted down to what the share holds where it does not
+    /// ([`hooke_assembly::HessianPattern::definite_scales`]); the contact barriers' clamped
+    /// blocks (exact on a plane), the friction's and the dashpot's (positive semidefinite).
+    /// Positive definite, with smallest eigenvalue at least (1 − θ) times the smallest mass, up to
+    /// rounding.
+    fn definite_hessian(&mut self, xf: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+        Some(self.assemble(xf, SpringBlocks::Definite))
     }
 
     /// Nothing with contact ([`BackwardEulerStep::set_contact`]): the relaxation's per-vertex
@@ -283,27 +303,66 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 }
 
+/// Which spring blocks [`BackwardEulerStep::assemble`] uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum SpringBlocks {
+    /// Exact, and the exact contact barriers.
+    Exact,
+    /// Clamped, and the clamped contact barriers.
+    Clamped,
+    /// The mass-split projection (see [`NewtonProblem::definite_hessian`]), and the clamped
+    /// contact barriers.
+    Definite,
+}
+
 impl<const D: usize> BackwardEulerStep<D> {
-    /// Assemble the Hessian at `xf` with the spring blocks of `definiteness` (dashpot and
+    /// Assemble the Hessian at `xf` with the spring blocks `blocks` (dashpot, contact and
     /// counter-forces included) into `values`.
-    fn assemble(
+    pub(crate) fn assemble(
         &mut self,
         xf: &[f64],
-        definiteness: Definiteness,
+        blocks: SpringBlocks,
     ) -> SparseColMatRef<'_, usize, f64> {
         self.expand(xf);
-        self.pattern.assemble_into(
-            &self.springs,
-            &self.x,
-            &self.masses,
-            self.h,
-            HessianParams {
-                definiteness,
-                parallel: self.parallel,
-            },
-            &mut self.workspace,
-            &mut self.values,
-        );
+        let definiteness = match blocks {
+            SpringBlocks::Exact => Definiteness::Exact,
+            SpringBlocks::Clamped | SpringBlocks::Definite => Definiteness::Clamped,
+        };
+        if blocks == SpringBlocks::Definite {
+            self.projected_springs = self.pattern.definite_scales(
+                &self.springs,
+                &self.x,
+                &self.masses,
+                self.h,
+                self.definite_share,
+                self.parallel,
+                &mut self.loads,
+                &mut self.scales,
+            );
+            self.pattern.assemble_scaled_into(
+                &self.springs,
+                &self.x,
+                &self.masses,
+                self.h,
+                &self.scales,
+                self.parallel,
+                &mut self.workspace,
+                &mut self.values,
+            );
+        } else {
+            self.pattern.assemble_into(
+                &self.springs,
+                &self.x,
+                &self.masses,
+                self.h,
+                HessianParams {
+                    definiteness,
+                    parallel: self.parallel,
+                },
+                &mut self.workspace,
+                &mut self.values,
+            );
+        }
         if self.dashpot > 0.0 {
             // ∇²Ψ = h c d dᵀ blocks, directions from the step's start.
             self.pattern.add_dashpot_into(

@@ -212,6 +212,8 @@ proptest! {
             Just(IndefinitePolicy::ConvexBlend),
             Just(IndefinitePolicy::NewtonIfDescent),
             Just(IndefinitePolicy::Shift),
+            Just(IndefinitePolicy::Projected),
+            Just(IndefinitePolicy::ProjectedThenExact),
         ],
     ) {
         let mut params = NewtonParams { indefinite: policy, ..NewtonParams::default() };
