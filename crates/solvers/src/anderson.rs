@@ -86,7 +86,7 @@ const DEPENDENT_DIFFERENCE: f64 = 1e-10;
 
 /// Plain PD iterations that check a proposed stop, PD's rule ([`FixedPointError`]) applied to the
 /// last of them. Its rate estimate needs the slowest mode to dominate the changes, which takes
-/// some iterations from an accelerated point: on cloth-10 (tests/anderson.rs, window 8) the
+/// some iterations from an accelerated point: on cloth-10 (the anderson tests, window 8) the
 /// stop after 10 left up to 2.07 T to go, after 20 at most 1.74 T (plain PD's own: 1.25 T).
 const VERIFY_ITERATIONS: usize = 20;
 
@@ -246,7 +246,7 @@ impl<const D: usize> AndersonPd<D> {
         let tolerance = p.tolerance * pd.time_step();
         // The estimate on the accepted points' changes, which only proposes a stop: Anderson's
         // changes are irregular, and their ratios underestimate the distance left (12.7 T on
-        // cloth-10 at T = 1e-2 m/s, tests/anderson.rs). The stop itself is PD's rule on plain PD
+        // cloth-10 at T = 1e-2 m/s, the anderson tests). The stop itself is PD's rule on plain PD
         // iterations from the proposed point (`verify`, fresh for each proposal).
         let mut error = FixedPointError::default();
         let mut verify: Option<(FixedPointError, usize)> = None;

@@ -10,12 +10,15 @@ mod common;
 mod waved_step;
 
 mod amg;
+mod anderson;
 mod backward_euler;
 mod chebyshev;
 mod cholesky;
+mod definite;
 mod factor_reuse;
 mod iterative;
 mod lbfgs;
+mod memory_budget;
 mod newton;
 mod newton_cg;
 mod params;

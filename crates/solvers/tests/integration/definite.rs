@@ -12,9 +12,7 @@ use hooke_solvers::{
 };
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-mod common;
-#[allow(dead_code)] // the shared set-up has fields these tests do not read
-mod waved_step;
+use crate::waved_step;
 use waved_step::{clamped, newton_solution, objective_error, step};
 
 type V = Vector3<f64>;

@@ -10,7 +10,7 @@ use hooke_solvers::{
 };
 use nalgebra::Vector3;
 
-mod common;
+use crate::common;
 use common::inertial_target;
 
 type V = Vector3<f64>;
