@@ -2,111 +2,16 @@
 //! Anderson points above the plain PD iterate and keeps Φ from rising, its tolerance bounds the
 //! distance to the solution as PD's does, and it beats plain PD per iteration.
 
-use hooke_assembly::FreeDofs;
 use hooke_mesh::{generators, SpringMesh};
 use hooke_solvers::{
-    AndersonParams, AndersonPd, AndersonReport, BackwardEulerStep, Newton, NewtonParams,
-    NewtonProblem, PdParams, ProjectiveDynamics, StopReason,
+    AndersonParams, AndersonPd, AndersonReport, NewtonProblem, PdParams, StopReason,
 };
-use nalgebra::Vector3;
 
-use crate::common;
-use common::inertial_target;
-
-type V = Vector3<f64>;
-
-struct Step {
-    mesh: SpringMesh<3>,
-    pd: ProjectiveDynamics<3>,
-    problem: BackwardEulerStep<3>,
-    x_n: Vec<V>,
-    y: Vec<V>,
-}
-
-/// A backward Euler step from rest whose inertial target is gravity's h² g plus a transverse wave
-/// of `amplitude` (m).
-fn step(mesh: SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Step {
-    let x_n = mesh.positions().to_vec();
-    let g = V::new(0.0, -9.81, 0.0);
-    let y = inertial_target(&x_n, pinned, |_, p| {
-        g * (h * h) + V::new(0.0, amplitude * (7.0 * p.x + 3.0 * p.z).sin(), 0.0)
-    });
-    let free = FreeDofs::new(mesh.vertex_count(), pinned).unwrap();
-    let pd =
-        ProjectiveDynamics::<3>::new(mesh.springs(), mesh.masses(), &free, h, PdParams::default())
-            .unwrap();
-    let problem = BackwardEulerStep::<3>::new(mesh.springs(), mesh.masses(), free, h);
-    Step {
-        mesh,
-        pd,
-        problem,
-        x_n,
-        y,
-    }
-}
+use crate::chebyshev::{distance, step, Step, V};
 
 impl Step {
-    /// Reduced unknowns of per-vertex positions.
-    fn reduced(&mut self, x: &[V]) -> Vec<f64> {
-        let mut xf = vec![0.0; self.problem.dim()];
-        self.problem.set_step(&self.y, x, &mut xf);
-        // set_step writes y's free part; overwrite it with x's.
-        let free: Vec<u32> = self.problem.free().free_vertices().to_vec();
-        for (f, v) in free.iter().enumerate() {
-            xf[3 * f..3 * f + 3].copy_from_slice(x[*v as usize].as_slice());
-        }
-        xf
-    }
-
-    /// (Φ(x) − Φ*) / (Φ(y) − Φ*) against Newton's x* (to a relative gradient of 1e-12).
-    fn objective_error(&mut self, x: &[V]) -> f64 {
-        let mut solution = vec![0.0; self.problem.dim()];
-        let (y, x_n) = (self.y.clone(), self.x_n.clone());
-        self.problem.set_step(&y, &x_n, &mut solution);
-        let start = solution.clone();
-        let params = NewtonParams {
-            tolerance: 1e-12,
-            ..Default::default()
-        };
-        let report = Newton::new(self.problem.pattern(), params)
-            .unwrap()
-            .minimize(&mut self.problem, &mut solution)
-            .unwrap();
-        assert!(matches!(
-            report.stop,
-            StopReason::Converged | StopReason::Stagnated
-        ));
-        let xf = self.reduced(x);
-        self.problem.objective_change(&solution, &xf)
-            / self.problem.objective_change(&solution, &start)
-    }
-
-    /// Newton's minimiser x* (to a relative gradient of 1e-12), per vertex.
-    fn newton_positions(&mut self) -> Vec<V> {
-        let mut solution = vec![0.0; self.problem.dim()];
-        let (y, x_n) = (self.y.clone(), self.x_n.clone());
-        self.problem.set_step(&y, &x_n, &mut solution);
-        let params = NewtonParams {
-            tolerance: 1e-12,
-            ..Default::default()
-        };
-        let report = Newton::new(self.problem.pattern(), params)
-            .unwrap()
-            .minimize(&mut self.problem, &mut solution)
-            .unwrap();
-        assert!(report.stop.is_at_resolution(), "{:?}", report.stop);
-        self.problem.positions(&solution).to_vec()
-    }
-
-    /// Plain PD from y with `params`.
-    fn solve_plain(&mut self, params: PdParams) -> (Vec<V>, hooke_solvers::PdReport) {
-        let mut x = self.y.clone();
-        self.pd.params = params;
-        let report = self.pd.solve(self.mesh.springs(), &self.y, &mut x).unwrap();
-        (x, report)
-    }
-
-    fn solve(&mut self, params: AndersonParams) -> (Vec<V>, AndersonReport) {
+    /// Anderson PD from y with `params`.
+    fn solve_anderson(&mut self, params: AndersonParams) -> (Vec<V>, AndersonReport) {
         let mut x = self.y.clone();
         let mut solver = AndersonPd::<3>::new(self.mesh.vertex_count(), params).unwrap();
         let report = solver
@@ -124,7 +29,7 @@ fn reaches_newton(mesh: SpringMesh<3>, pinned: &[u32]) {
         tolerance: 1e-10,
         ..Default::default()
     };
-    let (x, report) = s.solve(params);
+    let (x, report) = s.solve_anderson(params);
     let error = s.objective_error(&x);
     eprintln!(
         "{} iterations ({} accepted, {} refused), {:?}, objective error {error:e}",
@@ -162,7 +67,7 @@ fn anderson_beats_plain_pd_at_the_same_iterations() {
         1.0 / 30.0,
         0.05,
     );
-    let (x_fast, report) = s.solve(AndersonParams {
+    let (x_fast, report) = s.solve_anderson(AndersonParams {
         max_iterations: 100,
         ..Default::default()
     });
@@ -181,14 +86,6 @@ fn anderson_beats_plain_pd_at_the_same_iterations() {
     );
 }
 
-/// Largest |x − x*| over the coordinates (m), the measure PD's tolerance is stated in.
-fn distance(x: &[V], x_star: &[V]) -> f64 {
-    x.iter()
-        .zip(x_star)
-        .map(|(a, b)| (a - b).amax())
-        .fold(0.0, f64::max)
-}
-
 /// The tolerance T bounds the distance to the solution per h (m/s) as PD's does
 /// (`FixedPointError` on the changes of the accepted points), on the cloth-10 step where the last
 /// change alone is a poor measure (tests/chebyshev.rs shows that for PD): within 2 T, the bound
@@ -199,7 +96,7 @@ fn the_tolerance_bounds_the_distance_to_the_solution() {
     let mut s = step(generators::cloth(10, 1e3).unwrap(), &[0, 9], h, 0.05);
     let x_star = s.newton_positions();
     for tolerance in [1e-2, 1e-4, 1e-6] {
-        let (x, report) = s.solve(AndersonParams {
+        let (x, report) = s.solve_anderson(AndersonParams {
             max_iterations: 8000,
             tolerance,
             ..Default::default()
@@ -221,7 +118,7 @@ fn the_tolerance_bounds_the_distance_to_the_solution() {
 #[test]
 fn the_energy_guard_refuses_points_above_the_plain_iterate_and_phi_never_rises() {
     let mut s = step(generators::cloth(40, 1e5).unwrap(), &[0, 39], 0.2, 0.1);
-    let (x, report) = s.solve(AndersonParams {
+    let (x, report) = s.solve_anderson(AndersonParams {
         max_iterations: 60,
         record_objective: true,
         ..Default::default()
@@ -273,7 +170,7 @@ fn the_solve_is_deterministic() {
         window: 3,
         ..Default::default()
     };
-    let (a, _) = s.solve(params);
+    let (a, _) = s.solve_anderson(params);
     let mut solver = AndersonPd::<3>::new(s.mesh.vertex_count(), params).unwrap();
     let springs = s.mesh.springs().to_vec();
     let mut other = s.y.clone();

@@ -13,19 +13,19 @@ use proptest::prelude::*;
 use crate::common;
 use common::inertial_target;
 
-type V = Vector3<f64>;
+pub(crate) type V = Vector3<f64>;
 
-struct Step {
-    mesh: SpringMesh<3>,
-    pd: ProjectiveDynamics<3>,
-    problem: BackwardEulerStep<3>,
-    x_n: Vec<V>,
-    y: Vec<V>,
+pub(crate) struct Step {
+    pub(crate) mesh: SpringMesh<3>,
+    pub(crate) pd: ProjectiveDynamics<3>,
+    pub(crate) problem: BackwardEulerStep<3>,
+    pub(crate) x_n: Vec<V>,
+    pub(crate) y: Vec<V>,
 }
 
-/// A backward Euler step from rest whose inertial target is gravity's h² g plus a transverse wave
+/// (Shared with the Anderson tests.) A backward Euler step from rest whose inertial target is gravity's h² g plus a transverse wave
 /// of `amplitude` (m).
-fn step(mesh: SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Step {
+pub(crate) fn step(mesh: SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Step {
     let x_n = mesh.positions().to_vec();
     let g = V::new(0.0, -9.81, 0.0);
     let y = inertial_target(&x_n, pinned, |_, p| {
@@ -47,7 +47,7 @@ fn step(mesh: SpringMesh<3>, pinned: &[u32], h: f64, amplitude: f64) -> Step {
 
 impl Step {
     /// Reduced unknowns of per-vertex positions.
-    fn reduced(&mut self, x: &[V]) -> Vec<f64> {
+    pub(crate) fn reduced(&mut self, x: &[V]) -> Vec<f64> {
         let mut xf = vec![0.0; self.problem.dim()];
         self.problem.set_step(&self.y, x, &mut xf);
         // set_step writes y's free part; overwrite it with x's.
@@ -59,7 +59,7 @@ impl Step {
     }
 
     /// (Φ(x) − Φ*) / (Φ(y) − Φ*) against Newton's x* (to a relative gradient of 1e-12).
-    fn objective_error(&mut self, x: &[V]) -> f64 {
+    pub(crate) fn objective_error(&mut self, x: &[V]) -> f64 {
         let mut solution = vec![0.0; self.problem.dim()];
         let (y, x_n) = (self.y.clone(), self.x_n.clone());
         self.problem.set_step(&y, &x_n, &mut solution);
@@ -82,7 +82,7 @@ impl Step {
     }
 
     /// Newton's minimiser x* (to a relative gradient of 1e-12), per vertex.
-    fn newton_positions(&mut self) -> Vec<V> {
+    pub(crate) fn newton_positions(&mut self) -> Vec<V> {
         let mut solution = vec![0.0; self.problem.dim()];
         let (y, x_n) = (self.y.clone(), self.x_n.clone());
         self.problem.set_step(&y, &x_n, &mut solution);
@@ -99,7 +99,7 @@ impl Step {
     }
 
     /// Plain PD from y with `params`.
-    fn solve_plain(&mut self, params: PdParams) -> (Vec<V>, hooke_solvers::PdReport) {
+    pub(crate) fn solve_plain(&mut self, params: PdParams) -> (Vec<V>, hooke_solvers::PdReport) {
         let mut x = self.y.clone();
         self.pd.params = params;
         let report = self.pd.solve(self.mesh.springs(), &self.y, &mut x).unwrap();
@@ -191,7 +191,7 @@ fn chebyshev_beats_plain_pd_at_the_same_iterations() {
 }
 
 /// Largest |x − x*| over the coordinates (m), the measure PD's tolerance is stated in.
-fn distance(x: &[V], x_star: &[V]) -> f64 {
+pub(crate) fn distance(x: &[V], x_star: &[V]) -> f64 {
     x.iter()
         .zip(x_star)
         .map(|(a, b)| (a - b).amax())
