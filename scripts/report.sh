@@ -4,7 +4,7 @@
 #
 # Usage: scripts/report.sh [PART ...]      (from anywhere; honours CARGO_TARGET_DIR)
 #
-# PARTs: cloth-40 beam-4 cloth-160 sweep hard-cases sph kernels refill (default: all of them, in
+# PARTs: cloth-40 beam-4 cloth-160 sweep scale hard-cases sph kernels refill (default: all of them, in
 # that order; about an hour on a quiet 2-core machine, most of it cloth-160's Newton rows, the
 # sweep's reference states and the criterion kernels). A part writes its raw records (text output,
 # JSON, CSV, its command and the machine's state) to benches/results/current/PART.*, and its plot
@@ -23,7 +23,7 @@ mkdir -p "$results" "$root/out"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-all_parts=(cloth-40 beam-4 cloth-160 sweep hard-cases sph kernels refill)
+all_parts=(cloth-40 beam-4 cloth-160 sweep scale hard-cases sph kernels refill)
 if [ $# -eq 0 ]; then
     parts=("${all_parts[@]}")
 else
@@ -87,11 +87,19 @@ for part in "${parts[@]}"; do
     case $part in
     cloth-40 | beam-4 | cloth-160) bench_scene "$part" ;;
     sweep)
-        run sweep "$bin" bench --sweep N=10,20,40,80,160,320,640 --from-state --quiet \
+        # From the speed-vs-error state: its 10 exact steps are what bounds the size here.
+        run sweep "$bin" bench --sweep N=10,20,40,80,160 --from-state --quiet \
             --solver pd:10 --solver newton-tol:1e-8 --solver newton-cg-amg-tol:1e-8 \
             --json "$work/sweep.json" --csv "$work/sweep.csv" --plot "$work/sweep.png"
         place "$results/sweep.png" benches/sweep.png
         rm -f "$results/sweep.png"
+        ;;
+    scale)
+        # The first step from rest, up to 409,600 vertices: how PD's step grows with size.
+        run scale "$bin" bench --sweep N=40,80,160,320,640 --quiet --solver pd:10 \
+            --json "$work/scale.json" --csv "$work/scale.csv" --plot "$work/scale.png"
+        place "$results/scale.png" benches/scale.png
+        rm -f "$results/scale.png"
         ;;
     hard-cases) run hard-cases "$bin" bench --hard-cases --quiet ;;
     sph) run sph "$bin" bench --sph 1e3,1e4,1e5,dam-break-2d --quiet ;;

@@ -595,6 +595,19 @@ fn drape_and_fall_scenes_are_as_defined() {
     }
 }
 
+/// `scenes::builtin_has_contact`, which help texts use to tell the contact scenes apart without
+/// building them, agrees with every listed scene as built.
+#[test]
+fn builtin_has_contact_agrees_with_the_built_scenes() {
+    for (name, _) in scenes::builtin_scenes() {
+        let has_contact = match scenes::builtin(&name).expect("listed").expect("builds") {
+            scenes::AnySetup::Two(s) => !s.scene.contacts().is_empty(),
+            scenes::AnySetup::Three(s) => !s.scene.contacts().is_empty(),
+        };
+        assert_eq!(scenes::builtin_has_contact(&name), has_contact, "{name}");
+    }
+}
+
 /// A file mesh is placed by `mesh.transform` before springs, masses and pins are made: the
 /// 30×30 cloth file scaled by 2 about the origin and lifted by 1 m keeps its spring count, has
 /// springs twice as long, and its pin region is found where the transform put it.

@@ -150,6 +150,16 @@ pub fn builtin(name: &str) -> Option<Result<AnySetup, SimError>> {
     None
 }
 
+/// Whether the built-in scene `name` has obstacles: `cloth-drape-N`, `cloth-fall-N`,
+/// `bunny-drop` and `seed-2d` (its box). Answered from the name alone, without building the scene
+/// (help texts list the scenes by it); `false` for an unknown name.
+pub fn builtin_has_contact(name: &str) -> bool {
+    name.starts_with("cloth-drape-")
+        || name.starts_with("cloth-fall-")
+        || name == "bunny-drop"
+        || name == "seed-2d"
+}
+
 fn gravity_3d() -> ExternalForce<3> {
     ExternalForce::Gravity {
         acceleration: Vector3::new(0.0, -GRAVITY, 0.0),

@@ -18,7 +18,9 @@ const FONT: &str = "sans-serif";
 /// DejaVu Sans (see `assets/fonts/DejaVuSans-LICENSE.txt`).
 static FONT_BYTES: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
 
-const PALETTE: [RGBColor; 8] = [
+/// Twelve colours told apart at a glance, so that `hooke bench`'s default solver list (ten
+/// solvers) draws no two curves alike.
+const PALETTE: [RGBColor; 12] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -27,6 +29,10 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
     RGBColor(23, 190, 207),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(0, 0, 0),
+    RGBColor(0, 0, 128),
 ];
 
 fn font_ready() -> bool {
@@ -107,9 +113,14 @@ pub(crate) fn fitted_log_range(values: impl Iterator<Item = f64>) -> std::ops::R
     lo / margin..hi * margin
 }
 
+/// The most labelled ticks a log axis gets: more would overlap on a 600-pixel axis.
+const MAX_LOG_LABELS: usize = 12;
+
 /// A log axis over `range` whose labelled ticks are 1, 2 and 5 × 10ᵏ (every digit × 10ᵏ when
 /// that gives fewer than three), the light grid every digit × 10ᵏ: a fitted axis narrower than a
-/// decade still reads.
+/// decade still reads. An axis over so many decades that 1, 2, 5 would give more than
+/// [`MAX_LOG_LABELS`] labels is labelled at decades only (every second, third… decade if there are
+/// still too many), with the light grid at every decade.
 pub(crate) fn log_axis(range: std::ops::Range<f64>) -> WithKeyPoints<LogCoord<f64>> {
     let within = |digits: &[f64]| -> Vec<f64> {
         let (first, last) = (
@@ -123,13 +134,23 @@ pub(crate) fn log_axis(range: std::ops::Range<f64>) -> WithKeyPoints<LogCoord<f6
     };
     let all: Vec<f64> = within(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
     let mut bold = within(&[1.0, 2.0, 5.0]);
+    let mut light = all.clone();
     if bold.len() < 3 {
-        bold = all.clone();
+        bold = all;
+    } else if bold.len() > MAX_LOG_LABELS {
+        let decades = within(&[1.0]);
+        let every = decades.len().div_ceil(MAX_LOG_LABELS) as i32;
+        bold = decades
+            .iter()
+            .copied()
+            .filter(|v| (v.log10().round() as i32).rem_euclid(every) == 0)
+            .collect();
+        light = decades;
     }
     range
         .log_scale()
         .with_key_points(bold)
-        .with_light_points(all)
+        .with_light_points(light)
 }
 
 /// A log axis' tick label, to one significant digit when that is exact, else two: plain between
@@ -156,6 +177,7 @@ fn chart(
     x_label: &str,
     y_label: &str,
     series: &[Series],
+    legend: SeriesLabelPosition,
 ) -> Result<(), String> {
     let text = font_ready();
     let x = fitted_log_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
@@ -200,23 +222,32 @@ fn chart(
         c.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, color.filled())))
             .map_err(|e| e.to_string())?;
         if text {
-            // Each point's setting, just right of and above its marker.
+            // Each point's setting above its marker: to its right, or to its left where the
+            // label would run past the plotting area's right edge.
             let style = label_font.clone().color(&color);
-            c.draw_series(
-                s.points
-                    .iter()
-                    .zip(&s.labels)
-                    .filter(|(_, l)| !l.is_empty())
-                    .map(|(&p, l)| {
-                        EmptyElement::at(p) + Text::new(l.clone(), (6, -16), style.clone())
-                    }),
-            )
-            .map_err(|e| e.to_string())?;
+            let right_edge = c.plotting_area().get_pixel_range().0.end;
+            let placed: Vec<_> = s
+                .points
+                .iter()
+                .zip(&s.labels)
+                .filter(|(_, l)| !l.is_empty())
+                .map(|(&p, l)| {
+                    let width = label_font.box_size(l).map_or(0, |(w, _)| w as i32);
+                    let x = c.backend_coord(&p).0;
+                    let dx = if x + 6 + width > right_edge {
+                        -6 - width
+                    } else {
+                        6
+                    };
+                    EmptyElement::at(p) + Text::new(l.clone(), (dx, -16), style.clone())
+                })
+                .collect();
+            c.draw_series(placed).map_err(|e| e.to_string())?;
         }
     }
     if text && !series.is_empty() {
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend)
             .label_font((FONT, 13))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.4))
@@ -273,6 +304,8 @@ pub fn plot_pareto(path: &Path, records: &[Record], title: &str) -> Result<(), B
             "wall time of the step (s)",
             "(Φ(x) − Φ*) / (Φ(y) − Φ*)",
             &objective,
+            // Fast and exact, the corner no solver reaches: the legend hides nothing there.
+            SeriesLabelPosition::LowerLeft,
         )?;
         chart(
             &right,
@@ -280,6 +313,7 @@ pub fn plot_pareto(path: &Path, records: &[Record], title: &str) -> Result<(), B
             "wall time of the step (s)",
             "|x − x*| / |x* − x_n|",
             &position,
+            SeriesLabelPosition::LowerLeft,
         )
     })
 }
@@ -313,6 +347,8 @@ pub fn plot_sweep(path: &Path, rows: &[SweepRow], title: &str) -> Result<(), Ben
             "vertices",
             "wall time of one step (s)",
             &series,
+            // Few vertices and a long step: the corner time growing with size leaves empty.
+            SeriesLabelPosition::UpperLeft,
         )
     })
 }
@@ -422,6 +458,14 @@ mod tests {
         assert!(axis.bold_points().iter().all(|v| narrow.contains(v)));
         let wide = log_axis(fitted_log_range([1e-4, 1e-1].into_iter()));
         assert!(wide.bold_points().contains(&1e-3) && wide.bold_points().contains(&2e-3));
+        // Thirty decades (an objective error down to round-off) get decade labels, few enough
+        // to read, and all of them powers of ten.
+        let deep = log_axis(fitted_log_range([1e-31, 0.1].into_iter()));
+        let labels = deep.bold_points();
+        assert!((3..=MAX_LOG_LABELS).contains(&labels.len()), "{labels:?}");
+        assert!(labels
+            .iter()
+            .all(|v| (v.log10() - v.log10().round()).abs() < 1e-9));
     }
 
     #[test]

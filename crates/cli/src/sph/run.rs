@@ -424,8 +424,9 @@ fn run_scene<const D: usize>(
         return Err(e);
     }
     let speeds: Vec<f64> = fluid.velocities().iter().map(|v| v.norm()).collect();
+    let shown = summary.frames.last().map_or(0, |r| r.frame);
     let title = format!(
-        "{name}  t = {:.3} s  ({} particles, dx = {} m)",
+        "{name} · frame {shown} · t = {:.3} s  ({} particles, dx = {} m)",
         fluid.time(),
         fluid.fluid_count(),
         scene.dx
