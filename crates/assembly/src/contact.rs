@@ -292,9 +292,10 @@ pub fn barrier_second_derivative(d: f64, d_hat: f64) -> f64 {
 }
 
 /// b(d + δ) − b(d) (m²), without subtracting two rounded barrier values where both ends lie in
-/// (0, d̂): with a = d − d̂, L = ln(d/d̂) and λ = ln_1p(δ/d) it is −[(2aδ + δ²)L + (a + δ)²λ], two
-/// terms of the same sign, so the result is accurate to a few ulps even when |δ| ≪ d (where the
-/// direct difference loses all its digits). If one end is at or beyond d̂ the result is the other
+/// (0, d̂): with a = d − d̂, L = ln(d/d̂) and λ = ln((d + δ)/d) it is −[(2aδ + δ²)L + (a + δ)²λ],
+/// two terms of the same sign, so the result is accurate to a few ulps even when |δ| ≪ d (where
+/// the direct difference loses all its digits). λ is ln_1p(δ/d), or ln((d + δ)/d) where the end
+/// is below d/2: there d + δ is exact (Sterbenz) and 1 + δ/d would lose its digits as d + δ → 0. If one end is at or beyond d̂ the result is the other
 /// end's value with the right sign; 0 if both are. +∞ if d + δ ≤ 0 < d; −∞ if d ≤ 0 < d + δ; NaN
 /// if both are ≤ 0 (∞ − ∞) or an input is NaN.
 #[inline]
@@ -315,7 +316,11 @@ pub fn barrier_change(d: f64, delta: f64, d_hat: f64) -> f64 {
         (false, true) => -barrier(d, d_hat),
         (false, false) => {
             let (a, log) = gap_and_log(d, d_hat);
-            let step_log = (delta / d).ln_1p();
+            let step_log = if end < 0.5 * d {
+                (end / d).ln()
+            } else {
+                (delta / d).ln_1p()
+            };
             let moved = a + delta;
             -((2.0 * a + delta) * delta * log + moved * moved * step_log)
         }

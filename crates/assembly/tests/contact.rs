@@ -268,7 +268,12 @@ proptest! {
     }
 
     /// Where the direct difference is accurate (|δ| ≥ 1e-3 of the scale), the two agree to the
-    /// direct difference's own rounding, a few ε of the larger value.
+    /// direct difference's own rounding: a few ε of the larger value, plus what the rounding of
+    /// its end point fl(d + δ) (up to ε/2 |d + δ|) moves b there, |b'| times that. Near d̂ the
+    /// latter dominates: b vanishes as (d̂ − d)³, so |b'| d / b ≈ 3 d / (d̂ − d) is in the
+    /// hundreds (the first case kept in contact.proptest-regressions: d = 0.98 d̂, 3.6 times the
+    /// first term alone). The second kept case, δ = −0.9985 d, is the end near 0, where 1 + δ/d
+    /// lost its digits before `barrier_change` took ln((d + δ)/d) there.
     #[test]
     fn barrier_change_agrees_with_the_direct_difference(
         d_hat in log_uniform(1e-4, 1.0),
@@ -277,11 +282,14 @@ proptest! {
     ) {
         let d = d_hat * 10f64.powf(e);
         let delta = s * d;
-        let (b0, b1) = (barrier(d, d_hat), barrier(d + delta, d_hat));
+        let end = d + delta;
+        let (b0, b1) = (barrier(d, d_hat), barrier(end, d_hat));
         let change = barrier_change(d, delta, d_hat);
+        let slope = barrier_derivative(end, d_hat).abs();
+        let end_rounding = 0.5 * EPS * end.abs() * slope;
         prop_assert!(
-            (change - (b1 - b0)).abs() <= 16.0 * EPS * b0.max(b1),
-            "{change} vs {}", b1 - b0
+            (change - (b1 - b0)).abs() <= 16.0 * EPS * b0.max(b1) + 2.0 * end_rounding,
+            "{change} vs {} (b0 {b0}, b1 {b1})", b1 - b0
         );
     }
 
