@@ -8,10 +8,11 @@
 //! rigid-body modes of [`Amg::rigid_body_modes`]) orthonormalised per aggregate by Gram–Schmidt
 //! with a rank test, the smoothed prolongator P = (I − ω D⁻¹A) T with ω = (4/3)/ρ(D⁻¹A) (D the
 //! block diagonal, ρ estimated by a fixed number of power iterations), and the Galerkin coarse
-//! matrix Pᵀ A P, symmetrised. The patterns of P, Pᵀ and Pᵀ A P are computed once;
+//! matrix Pᵀ A P, symmetrised. The patterns of P, Pᵀ, A P and Pᵀ A P are computed once;
 //! [`Amg::refresh`] refills their values from new values of A on the same pattern (no symbolic
-//! work, no allocation), giving the same bits as a fresh set-up with the same near-nullspace. The
-//! coarsest level is factored by [`crate::SparseCholesky`].
+//! work), giving the same bits as a fresh set-up with the same near-nullspace. The coarsest level
+//! is factored by [`crate::SparseCholesky`]. Memory: 32-bit column indices, and A T (as large as
+//! P) never stored whole (docs/solvers.md §2.4).
 //!
 //! The V-cycle smooths with symmetric block Gauss–Seidel by default (a forward then a backward
 //! sweep, before and after the coarse correction; [`AmgSmoother`]), the sweeps after being the
@@ -146,6 +147,14 @@ pub enum AmgError {
         /// The dimension.
         dim: usize,
     },
+    /// The dimension is above `u32::MAX`, the largest the hierarchy's 32-bit indices hold.
+    #[error(
+        "the matrix is {dim}×{dim}, above the largest dimension the hierarchy indexes (u32::MAX)"
+    )]
+    TooLarge {
+        /// The dimension.
+        dim: usize,
+    },
     /// A column's row indices are not strictly increasing.
     #[error("the row indices of column {column} are not sorted and unique")]
     UnsortedPattern {
@@ -174,14 +183,15 @@ pub enum AmgError {
     InvalidParameter(#[from] ParamError),
 }
 
-/// A square sparse matrix in compressed rows with sorted columns (symmetric matrices: the same
-/// arrays as compressed columns).
+/// A sparse matrix in compressed rows with sorted columns (symmetric matrices: the same arrays as
+/// compressed columns). Column indices are 32-bit, half the index memory of the largest
+/// hierarchies ([`Amg::new`] refuses a dimension above `u32::MAX`).
 #[derive(Clone, Debug, Default)]
 struct Csr {
     n_rows: usize,
     n_cols: usize,
     ptr: Vec<usize>,
-    col: Vec<usize>,
+    col: Vec<u32>,
     val: Vec<f64>,
 }
 
@@ -195,7 +205,7 @@ impl Csr {
         let row = |(i, yi): (usize, &mut f64)| {
             let mut s = 0.0;
             for e in self.row(i) {
-                s += self.val[e] * x[self.col[e]];
+                s += self.val[e] * x[self.col[e] as usize];
             }
             *yi = s;
         };
@@ -211,7 +221,7 @@ impl Csr {
         let row = |(i, ri): (usize, &mut f64)| {
             let mut s = b[i];
             for e in self.row(i) {
-                s -= self.val[e] * x[self.col[e]];
+                s -= self.val[e] * x[self.col[e] as usize];
             }
             *ri = s;
         };
@@ -232,10 +242,10 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
     for i in 0..a.n_rows {
         let start = col.len();
         for e in a.row(i) {
-            for f in b.row(a.col[e]) {
+            for f in b.row(a.col[e] as usize) {
                 let j = b.col[f];
-                if mark[j] != i {
-                    mark[j] = i;
+                if mark[j as usize] != i {
+                    mark[j as usize] = i;
                     col.push(j);
                 }
             }
@@ -281,12 +291,12 @@ fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
         for i in first..last {
             for e in a.row(i) {
                 let av = a.val[e];
-                for f in b.row(a.col[e]) {
-                    dense[b.col[f]] += av * b.val[f];
+                for f in b.row(a.col[e] as usize) {
+                    dense[b.col[f] as usize] += av * b.val[f];
                 }
             }
             for e in ptr[i]..ptr[i + 1] {
-                let j = col[e];
+                let j = col[e] as usize;
                 values[e - base] = dense[j];
                 dense[j] = 0.0;
             }
@@ -302,11 +312,13 @@ fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
     }
 }
 
-/// The pattern of Aᵀ and, per entry of A, the index of the same entry in Aᵀ.
-fn transpose_pattern(a: &Csr) -> (Csr, Vec<usize>) {
+/// The pattern of Aᵀ. Its entries are laid out in the order of a walk over A's rows, each
+/// entry (i, j) of A to the next free place of row j of Aᵀ: [`Amg::fill`] moves values by the
+/// same walk.
+fn transpose_pattern(a: &Csr) -> Csr {
     let mut count = vec![0usize; a.n_cols + 1];
     for &j in &a.col {
-        count[j + 1] += 1;
+        count[j as usize + 1] += 1;
     }
     for j in 0..a.n_cols {
         count[j + 1] += count[j];
@@ -314,26 +326,21 @@ fn transpose_pattern(a: &Csr) -> (Csr, Vec<usize>) {
     let ptr = count.clone();
     let mut next = count;
     let mut col = vec![0; a.col.len()];
-    let mut map = vec![0; a.col.len()];
     for i in 0..a.n_rows {
         for e in a.row(i) {
-            let j = a.col[e];
-            col[next[j]] = i;
-            map[e] = next[j];
+            let j = a.col[e] as usize;
+            col[next[j]] = i as u32;
             next[j] += 1;
         }
     }
     let nnz = col.len();
-    (
-        Csr {
-            n_rows: a.n_cols,
-            n_cols: a.n_rows,
-            ptr,
-            col,
-            val: vec![0.0; nnz],
-        },
-        map,
-    )
+    Csr {
+        n_rows: a.n_cols,
+        n_cols: a.n_rows,
+        ptr,
+        col,
+        val: vec![0.0; nnz],
+    }
 }
 
 /// Invert the symmetric positive definite k × k block `m` (row-major, k ≤ [`AMG_MAX_BLOCK`]) in
@@ -405,17 +412,15 @@ struct Level {
 struct Transfer {
     /// The tentative prolongator (fixed).
     t: Csr,
-    /// A T.
-    at: Csr,
-    /// P = T − ω D⁻¹ A T.
+    /// P = T − ω D⁻¹ A T (A T is formed block by block in [`smooth_values`], never stored).
     p: Csr,
-    /// R = Pᵀ and the map from P's entries to R's.
+    /// R = Pᵀ.
     r: Csr,
-    p_to_r: Vec<usize>,
     /// A P.
     ap: Csr,
-    /// Per entry of the coarse matrix, the index of its transpose (for exact symmetry).
-    coarse_transpose: Vec<usize>,
+    /// Per coarse unknown, the next entry of its row: scratch of the transpositions in
+    /// [`Amg::fill`] (P's values into R, the coarse matrix' symmetrisation).
+    next: Vec<usize>,
     /// Scratch for the spectral radius: two vectors of the level's size.
     power: [Vec<f64>; 2],
 }
@@ -427,6 +432,8 @@ pub struct Amg {
     params: AmgParams,
     levels: Vec<Level>,
     coarse: SparseCholesky,
+    /// The coarsest matrix' pattern with faer's index type, for its factorisations.
+    coarse_pattern: SymbolicSparseColMat<usize>,
     /// Scratch of the product numerics, one per rayon thread (grown when the pool is larger than
     /// at the last fill), each as long as the largest column count.
     dense: Vec<Vec<f64>>,
@@ -508,6 +515,9 @@ impl Amg {
         if near_nullspace.iter().any(|v| !v.is_finite()) {
             return Err(AmgError::NonFinite);
         }
+        if u32::try_from(n).is_err() {
+            return Err(AmgError::TooLarge { dim: n });
+        }
         let fine = csr_of(a)?;
         let fine_nnz = fine.col.len();
         let block_ptr: Vec<usize> = (0..=n / block_size).map(|b| b * block_size).collect();
@@ -529,20 +539,16 @@ impl Amg {
             if coarse_size >= size || coarse_size == 0 {
                 break;
             }
-            let at = product_pattern(&level.a, &t);
-            let p = smoothed_pattern(&t, &at, &level.block_ptr);
-            let (r, p_to_r) = transpose_pattern(&p);
+            let p = smoothed_pattern(&level.a, &t, &level.block_ptr);
+            let r = transpose_pattern(&p);
             let ap = product_pattern(&level.a, &p);
             let coarse_a = product_pattern(&r, &ap);
-            let (_, coarse_transpose) = transpose_pattern(&coarse_a);
             level.transfer = Some(Transfer {
                 t,
-                at,
                 p,
                 r,
-                p_to_r,
                 ap,
-                coarse_transpose,
+                next: vec![0; coarse_size],
                 power: [vec![0.0; size], vec![0.0; size]],
             });
             levels.push(Level::new(coarse_a, coarse_ptr));
@@ -551,15 +557,15 @@ impl Amg {
         }
         let largest = levels.iter().map(|l| l.a.n_cols).max().unwrap_or(0);
         let last = &levels.last().expect("one level at least").a;
-        let symbolic = SymbolicSparseColMat::new_checked(
+        let coarse_pattern = SymbolicSparseColMat::new_checked(
             last.n_rows,
             last.n_cols,
             last.ptr.clone(),
             None,
-            last.col.clone(),
+            last.col.iter().map(|&c| c as usize).collect(),
         );
         let coarse = SparseCholesky::analyze(
-            symbolic.as_ref(),
+            coarse_pattern.as_ref(),
             CholeskyParams {
                 kind: FactorKind::Auto,
                 ..CholeskyParams::default()
@@ -569,6 +575,7 @@ impl Amg {
             params,
             levels,
             coarse,
+            coarse_pattern,
             dense: Vec::new(),
             largest,
             fine_nnz,
@@ -579,7 +586,8 @@ impl Amg {
 
     /// Refill every level from new values of the matrix, on the pattern the hierarchy was built for
     /// (the aggregates and the near-nullspace stay): no symbolic work (the only allocations are a
-    /// list of row chunks per product, and a scratch vector when the rayon pool has grown); the
+    /// list of row chunks per product, a block's rows of A T per chunk of the prolongator's
+    /// smoothing, and a scratch vector when the rayon pool has grown); the
     /// same bits as [`Amg::new`] on `a` with the same near-nullspace, whatever the thread count.
     ///
     /// # Errors
@@ -596,7 +604,8 @@ impl Amg {
         for j in 0..a.ncols() {
             let rows = a.row_idx_of_col_raw(j);
             let range = fine.row(j);
-            if rows != &fine.col[range.clone()] {
+            let cols = &fine.col[range.clone()];
+            if rows.len() != cols.len() || rows.iter().zip(cols).any(|(&r, &c)| r != c as usize) {
                 return Err(AmgError::PatternMismatch);
             }
             fine.val[range].copy_from_slice(a.val_of_col(j));
@@ -644,39 +653,49 @@ impl Amg {
             let omega = omega_scale / rho;
             let tr = level.transfer.as_mut().expect("checked");
             tr.power = power;
-            product_values(&level.a, &tr.t, &mut tr.at, dense);
             smooth_values(
+                &level.a,
                 tr,
                 &level.block_ptr,
                 &level.diag_offset,
                 &level.diag_inv,
                 omega,
+                dense,
             );
-            for (e, &m) in tr.p_to_r.iter().enumerate() {
-                tr.r.val[m] = tr.p.val[e];
+            // R = Pᵀ: P's entries, walked by rows, to their places in R (as transpose_pattern
+            // laid them out).
+            let Transfer { p, r, ap, next, .. } = tr;
+            next.copy_from_slice(&r.ptr[..r.n_rows]);
+            for i in 0..p.n_rows {
+                for e in p.row(i) {
+                    let j = p.col[e] as usize;
+                    r.val[next[j]] = p.val[e];
+                    next[j] += 1;
+                }
             }
-            product_values(&level.a, &tr.p, &mut tr.ap, dense);
+            product_values(&level.a, p, ap, dense);
             let coarse = &mut lower[0].a;
-            product_values(&tr.r, &tr.ap, coarse, dense);
-            for (e, &t) in tr.coarse_transpose.iter().enumerate() {
-                if e < t {
-                    let v = 0.5 * (coarse.val[e] + coarse.val[t]);
-                    coarse.val[e] = v;
-                    coarse.val[t] = v;
+            product_values(r, ap, coarse, dense);
+            // Exact symmetry: the mean of each entry and its transpose. The pattern Pᵀ A P is
+            // symmetric, so walking the rows in order meets the entries (i, j) of column j in
+            // the order of row j's entries (j, i).
+            next.copy_from_slice(&coarse.ptr[..coarse.n_rows]);
+            for i in 0..coarse.n_rows {
+                for e in coarse.row(i) {
+                    let j = coarse.col[e] as usize;
+                    let t = next[j];
+                    next[j] += 1;
+                    debug_assert_eq!(coarse.col[t] as usize, i, "the coarse pattern is symmetric");
+                    if e < t {
+                        let v = 0.5 * (coarse.val[e] + coarse.val[t]);
+                        coarse.val[e] = v;
+                        coarse.val[t] = v;
+                    }
                 }
             }
         }
         let last = &self.levels.last().expect("one level").a;
-        let view = SparseColMatRef::new(
-            faer::sparse::SymbolicSparseColMatRef::new_checked(
-                last.n_rows,
-                last.n_cols,
-                &last.ptr,
-                None,
-                &last.col,
-            ),
-            &last.val,
-        );
+        let view = SparseColMatRef::new(self.coarse_pattern.as_ref(), &last.val);
         self.coarse.factorize(view)?;
         Ok(())
     }
@@ -766,7 +785,7 @@ impl Level {
             let k = hi - lo;
             for i in lo..hi {
                 for e in a.row(i) {
-                    let j = a.col[e];
+                    let j = a.col[e] as usize;
                     if (lo..hi).contains(&j) {
                         diag_entries[diag_offset[b] + (i - lo) * k + (j - lo)] = e;
                     }
@@ -813,7 +832,7 @@ impl Level {
             for i in lo..hi {
                 let mut v = self.b[i];
                 for e in self.a.row(i) {
-                    v -= self.a.val[e] * self.x[self.a.col[e]];
+                    v -= self.a.val[e] * self.x[self.a.col[e] as usize];
                 }
                 s[i - lo] = v;
             }
@@ -890,7 +909,8 @@ fn csr_of(a: SparseColMatRef<'_, usize, f64>) -> Result<Csr, AmgError> {
         if rows.windows(2).any(|w| w[0] >= w[1]) {
             return Err(AmgError::UnsortedPattern { column: j });
         }
-        col.extend_from_slice(rows);
+        // Every row index is below n ≤ u32::MAX (checked by the caller).
+        col.extend(rows.iter().map(|&i| i as u32));
         val.extend_from_slice(a.val_of_col(j));
         ptr.push(col.len());
     }
@@ -926,7 +946,7 @@ fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
         let list = &mut neighbours[b];
         for i in block_ptr[b]..block_ptr[b + 1] {
             for e in a.row(i) {
-                let c = block_of[a.col[e]];
+                let c = block_of[a.col[e] as usize];
                 let v = a.val[e] * a.val[e];
                 if c == b {
                     diag[b] += v;
@@ -1058,7 +1078,8 @@ fn tentative(
     for row in &mut rows {
         row.sort_unstable_by_key(|&(c, _)| c);
         for &(c, v) in row.iter() {
-            col.push(c);
+            // A coarse index is below the fine dimension, itself ≤ u32::MAX.
+            col.push(c as u32);
             val.push(v);
         }
         ptr.push(col.len());
@@ -1083,23 +1104,24 @@ fn tentative(
 }
 
 /// The pattern of P = T − ω D⁻¹ A T: per block, the union of its rows' patterns in T and A T (D⁻¹
-/// mixes the rows of a block).
-fn smoothed_pattern(t: &Csr, at: &Csr, block_ptr: &[usize]) -> Csr {
+/// mixes the rows of a block), A T's taken from A's and T's patterns without forming it.
+fn smoothed_pattern(a: &Csr, t: &Csr, block_ptr: &[usize]) -> Csr {
     let mut mark = vec![usize::MAX; t.n_cols];
     let mut ptr = vec![0];
     let mut col = Vec::new();
     let mut block_cols = Vec::new();
     for b in 0..block_ptr.len() - 1 {
         block_cols.clear();
+        let mut add = |j: u32| {
+            if mark[j as usize] != b {
+                mark[j as usize] = b;
+                block_cols.push(j);
+            }
+        };
         for i in block_ptr[b]..block_ptr[b + 1] {
-            for (m, e) in [(t, t.row(i)), (at, at.row(i))] {
-                for e in e {
-                    let j = m.col[e];
-                    if mark[j] != b {
-                        mark[j] = b;
-                        block_cols.push(j);
-                    }
-                }
+            t.row(i).for_each(|f| add(t.col[f]));
+            for e in a.row(i) {
+                t.row(a.col[e] as usize).for_each(|f| add(t.col[f]));
             }
         }
         block_cols.sort_unstable();
@@ -1118,43 +1140,97 @@ fn smoothed_pattern(t: &Csr, at: &Csr, block_ptr: &[usize]) -> Csr {
     }
 }
 
-/// P's values: T − ω D⁻¹ (A T), per block (every row of a block has the block's pattern).
+/// P's values: T − ω D⁻¹ (A T), block by block (every row of a block has the block's pattern).
+/// A block's rows of A T are formed in a scratch vector of `dense` and kept only while the block
+/// is smoothed, so A T is never stored (on a 3D solid it is as large as P). The blocks are split
+/// into one contiguous chunk per scratch vector (each zeroed, of at least T's column count, and
+/// zeroed again on return), the chunks in parallel; each value is summed in a fixed order by one
+/// thread, so the bits do not depend on the split.
 fn smooth_values(
+    a: &Csr,
     tr: &mut Transfer,
     block_ptr: &[usize],
     diag_offset: &[usize],
     diag_inv: &[f64],
     omega: f64,
+    dense: &mut [Vec<f64>],
 ) {
-    let Transfer { t, at, p, .. } = tr;
-    for b in 0..block_ptr.len() - 1 {
-        let (lo, hi) = (block_ptr[b], block_ptr[b + 1]);
-        let k = hi - lo;
-        let inv = &diag_inv[diag_offset[b]..diag_offset[b] + k * k];
-        for i in lo..hi {
-            let row = p.ptr[i]..p.ptr[i + 1];
-            p.val[row.clone()].fill(0.0);
-            // T's row i, then −ω Σ_s Dinv[i, s] (A T)_s, merged into P's sorted row.
-            let cols = &p.col[row.clone()];
-            let add = |m: &Csr, r: usize, scale: f64, vals: &mut [f64]| {
+    let Transfer { t, p, .. } = tr;
+    let blocks = block_ptr.len() - 1;
+    let chunks = dense.len().clamp(1, blocks.max(1));
+    let chunk_blocks = blocks.div_ceil(chunks).max(1);
+    // Split P's values at the chunks' block boundaries.
+    let mut pieces: Vec<(usize, &mut [f64])> = Vec::new();
+    let mut rest: &mut [f64] = &mut p.val;
+    let mut consumed = 0;
+    let mut first = 0;
+    while first < blocks {
+        let last = (first + chunk_blocks).min(blocks);
+        let end = p.ptr[block_ptr[last]];
+        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(end - consumed);
+        consumed = end;
+        pieces.push((first, piece));
+        rest = tail;
+        first = last;
+    }
+    let (ptr, col) = (&p.ptr, &p.col);
+    let work = |((first, values), dense): ((usize, &mut [f64]), &mut Vec<f64>)| {
+        let last = (first + chunk_blocks).min(blocks);
+        let base = ptr[block_ptr[first]];
+        // The block's rows of A T on its pattern, row after row.
+        let mut at_rows: Vec<f64> = Vec::new();
+        for b in first..last {
+            let (lo, hi) = (block_ptr[b], block_ptr[b + 1]);
+            let k = hi - lo;
+            let cols = &col[ptr[lo]..ptr[lo + 1]];
+            let width = cols.len();
+            at_rows.clear();
+            at_rows.resize(k * width, 0.0);
+            for s in lo..hi {
+                for e in a.row(s) {
+                    let av = a.val[e];
+                    for f in t.row(a.col[e] as usize) {
+                        dense[t.col[f] as usize] += av * t.val[f];
+                    }
+                }
+                let row = &mut at_rows[(s - lo) * width..(s - lo + 1) * width];
+                for (v, &j) in row.iter_mut().zip(cols) {
+                    *v = dense[j as usize];
+                    dense[j as usize] = 0.0;
+                }
+            }
+            let inv = &diag_inv[diag_offset[b]..diag_offset[b] + k * k];
+            for i in lo..hi {
+                let vals = &mut values[ptr[i] - base..ptr[i + 1] - base];
+                vals.fill(0.0);
+                // T's row i, merged into P's sorted row.
                 let mut pos = 0;
-                for e in m.row(r) {
-                    let j = m.col[e];
-                    while cols[pos] != j {
+                for f in t.row(i) {
+                    while cols[pos] != t.col[f] {
                         pos += 1;
                     }
-                    vals[pos] += scale * m.val[e];
+                    vals[pos] += t.val[f];
                 }
-            };
-            let vals = &mut p.val[row];
-            add(t, i, 1.0, vals);
-            for s in lo..hi {
-                let w = inv[(i - lo) * k + (s - lo)];
-                if w != 0.0 {
-                    add(at, s, -omega * w, vals);
+                for s in lo..hi {
+                    let w = inv[(i - lo) * k + (s - lo)];
+                    if w != 0.0 {
+                        let scale = -omega * w;
+                        let row = &at_rows[(s - lo) * width..(s - lo + 1) * width];
+                        for (v, &r) in vals.iter_mut().zip(row) {
+                            *v += scale * r;
+                        }
+                    }
                 }
             }
         }
+    };
+    if pieces.len() > 1 {
+        pieces
+            .into_par_iter()
+            .zip(dense.par_iter_mut())
+            .for_each(work);
+    } else {
+        pieces.into_iter().zip(dense.iter_mut()).for_each(work);
     }
 }
 
