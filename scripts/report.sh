@@ -69,7 +69,10 @@ run() {
         echo "commit: $(commit)"
         echo "date: $start-$(date -u +%H:%M) UTC"
         echo "load: $load0 -> $(load) (load average over 1 min, at start and end)"
-        echo "command: ${*//$bin/hooke}"
+        # The command as a reader reruns it: `hooke` for the binary, file names without the
+        # temporary directory (records land in $results, plots beside the report).
+        local shown=${*//$bin/hooke}
+        echo "command: ${shown//$work\//}"
     } > "$work/$part.meta"
     for f in "$work/$part".*; do place "$f" "$results/$(basename "$f")"; done
 }
@@ -79,8 +82,7 @@ bench_scene() {
     local s=$1
     run "$s" "$bin" bench "$s" --quiet \
         --json "$work/$s.json" --csv "$work/$s.csv" --plot "$work/$s-pareto.png"
-    place "$results/$s-pareto.png" "benches/$s-pareto.png"
-    rm -f "$results/$s-pareto.png"
+    place "$work/$s-pareto.png" "benches/$s-pareto.png"
 }
 
 for part in "${parts[@]}"; do
