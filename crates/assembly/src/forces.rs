@@ -167,7 +167,7 @@ impl<const D: usize> SpringForces<D> {
 
 /// Sum `term(index)` over `0..count` in fixed chunks: each chunk serially, then the chunk sums in
 /// order, so the result does not depend on the number of threads. Allocation-free: the parallel
-/// path computes the chunk sums in batches of [`SUM_BATCH`] into an array on the stack and adds
+/// path computes the chunk sums in batches of `SUM_BATCH` (64) into an array on the stack and adds
 /// each batch to the total in order, which is the serial order of additions.
 pub fn deterministic_sum(count: usize, parallel: bool, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     let chunk_sum = |c: usize| {

@@ -4,7 +4,7 @@
 //!   ([`crate::CholeskyParams::memory_budget`]); by default half the machine's physical memory. A
 //!   factor above it is refused after the symbolic analysis, before its values are allocated
 //!   ([`CholeskyError::OverBudget`]).
-//! - Newton's linear solver ([`LinearSolver`]): the sparse Cholesky factor when it fits the budget;
+//! - Newton's linear solver (`LinearSolver`, internal): the sparse Cholesky factor when it fits the budget;
 //!   otherwise the multilevel path ([`MultilevelSolve`]), where each Newton system is solved by
 //!   conjugate gradients preconditioned with one V-cycle of the smoothed-aggregation [`Amg`],
 //!   whose hierarchy is built on the first Newton matrix of the pattern and refilled
