@@ -456,13 +456,16 @@ mod tests {
 
     proptest! {
         /// From any point outside, the move ends outside, exactly; a clear way is taken whole.
+        /// Starting points are drawn above the ground (below it is inside), so that only those
+        /// in the sphere are rejected: half the draws were, and more cases hit proptest's
+        /// reject limit.
         #[test]
         fn a_move_never_ends_inside(
-            from in prop::array::uniform3(-1.0f64..1.0),
+            from in (-1.0f64..1.0, 0.0f64..1.0, -1.0f64..1.0),
             to in prop::array::uniform3(-1.0f64..1.0),
         ) {
             let obstacles = scene();
-            let from = Vector3::from(from);
+            let from = Vector3::new(from.0, from.1, from.2);
             let to = Vector3::from(to);
             prop_assume!(outside(&obstacles, &from));
             let new = feasible_move(&obstacles, &from, &to);
