@@ -268,47 +268,68 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
 /// zeroed again on return), the chunks in parallel. Each row is summed in a fixed order by one
 /// thread, so the bits do not depend on the split.
 fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
-    let rows = a.n_rows;
-    let chunks = dense.len().clamp(1, rows.max(1));
-    let chunk_rows = rows.div_ceil(chunks).max(1);
-    // Split C's values at the chunks' row boundaries.
-    let mut pieces: Vec<(usize, &mut [f64])> = Vec::new();
-    let mut rest: &mut [f64] = &mut c.val;
-    let mut consumed = 0;
+    let Csr { ptr, col, val, .. } = c;
+    let (ptr, col) = (&*ptr, &*col);
+    for_each_chunk(
+        a.n_rows,
+        |i| ptr[i],
+        val,
+        dense,
+        |first, last, values, dense| {
+            let base = ptr[first];
+            for i in first..last {
+                for e in a.row(i) {
+                    let av = a.val[e];
+                    for f in b.row(a.col[e] as usize) {
+                        dense[b.col[f] as usize] += av * b.val[f];
+                    }
+                }
+                for e in ptr[i]..ptr[i + 1] {
+                    let j = col[e] as usize;
+                    values[e - base] = dense[j];
+                    dense[j] = 0.0;
+                }
+            }
+        },
+    );
+}
+
+/// Run `work(first, last, values, scratch)` over `units` units (rows or blocks) split into one
+/// contiguous chunk per scratch vector of `dense`, the chunks in parallel: each chunk gets its
+/// units' values, `values[offset(first)..offset(last)]` (`offset(u)`: the index of unit u's first
+/// value, non-decreasing, `offset(units)` = the end), and a scratch vector of its own.
+fn for_each_chunk(
+    units: usize,
+    offset: impl Fn(usize) -> usize,
+    values: &mut [f64],
+    dense: &mut [Vec<f64>],
+    work: impl Fn(usize, usize, &mut [f64], &mut Vec<f64>) + Sync,
+) {
+    let chunks = dense.len().clamp(1, units.max(1));
+    let chunk_units = units.div_ceil(chunks).max(1);
+    let mut pieces: Vec<(usize, usize, &mut [f64])> = Vec::new();
+    let mut rest = values;
+    let mut consumed = offset(0);
     let mut first = 0;
-    while first < rows {
-        let last = (first + chunk_rows).min(rows);
-        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(c.ptr[last] - consumed);
-        consumed = c.ptr[last];
-        pieces.push((first, piece));
+    while first < units {
+        let last = (first + chunk_units).min(units);
+        let end = offset(last);
+        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(end - consumed);
+        consumed = end;
+        pieces.push((first, last, piece));
         rest = tail;
         first = last;
     }
-    let (ptr, col) = (&c.ptr, &c.col);
-    let work = |((first, values), dense): ((usize, &mut [f64]), &mut Vec<f64>)| {
-        let last = (first + chunk_rows).min(rows);
-        let base = ptr[first];
-        for i in first..last {
-            for e in a.row(i) {
-                let av = a.val[e];
-                for f in b.row(a.col[e] as usize) {
-                    dense[b.col[f] as usize] += av * b.val[f];
-                }
-            }
-            for e in ptr[i]..ptr[i + 1] {
-                let j = col[e] as usize;
-                values[e - base] = dense[j];
-                dense[j] = 0.0;
-            }
-        }
+    let run = |((first, last, values), scratch): ((usize, usize, &mut [f64]), &mut Vec<f64>)| {
+        work(first, last, values, scratch)
     };
     if pieces.len() > 1 {
         pieces
             .into_par_iter()
             .zip(dense.par_iter_mut())
-            .for_each(work);
+            .for_each(run);
     } else {
-        pieces.into_iter().zip(dense.iter_mut()).for_each(work);
+        pieces.into_iter().zip(dense.iter_mut()).for_each(run);
     }
 }
 
@@ -1156,27 +1177,12 @@ fn smooth_values(
     dense: &mut [Vec<f64>],
 ) {
     let Transfer { t, p, .. } = tr;
+    let Csr { ptr, col, val, .. } = p;
+    let (ptr, col) = (&*ptr, &*col);
     let blocks = block_ptr.len() - 1;
-    let chunks = dense.len().clamp(1, blocks.max(1));
-    let chunk_blocks = blocks.div_ceil(chunks).max(1);
-    // Split P's values at the chunks' block boundaries.
-    let mut pieces: Vec<(usize, &mut [f64])> = Vec::new();
-    let mut rest: &mut [f64] = &mut p.val;
-    let mut consumed = 0;
-    let mut first = 0;
-    while first < blocks {
-        let last = (first + chunk_blocks).min(blocks);
-        let end = p.ptr[block_ptr[last]];
-        let (piece, tail) = std::mem::take(&mut rest).split_at_mut(end - consumed);
-        consumed = end;
-        pieces.push((first, piece));
-        rest = tail;
-        first = last;
-    }
-    let (ptr, col) = (&p.ptr, &p.col);
-    let work = |((first, values), dense): ((usize, &mut [f64]), &mut Vec<f64>)| {
-        let last = (first + chunk_blocks).min(blocks);
-        let base = ptr[block_ptr[first]];
+    let offset = |b: usize| ptr[block_ptr[b]];
+    for_each_chunk(blocks, offset, val, dense, |first, last, values, dense| {
+        let base = offset(first);
         // The block's rows of A T on its pattern, row after row.
         let mut at_rows: Vec<f64> = Vec::new();
         for b in first..last {
@@ -1223,15 +1229,7 @@ fn smooth_values(
                 }
             }
         }
-    };
-    if pieces.len() > 1 {
-        pieces
-            .into_par_iter()
-            .zip(dense.par_iter_mut())
-            .for_each(work);
-    } else {
-        pieces.into_iter().zip(dense.iter_mut()).for_each(work);
-    }
+    });
 }
 
 #[cfg(test)]
