@@ -85,10 +85,17 @@ pub fn sweep(
         for spec in specs {
             for mut outcome in run_spec(&problem, &mut meter, spec, options.timing, progress)? {
                 outcome.positions = Vec::new();
+                // The peak so far: Linux reads VmHWM from approximate per-CPU counters, so
+                // two readings in a busy multithreaded process can step back a few pages.
+                let earlier = rows.last().and_then(|r: &SweepRow| r.peak_memory_bytes);
+                let peak = match (peak_memory_bytes(), earlier) {
+                    (Some(now), Some(before)) => Some(now.max(before)),
+                    (now, before) => now.or(before),
+                };
                 rows.push(SweepRow {
                     vertices,
                     outcome,
-                    peak_memory_bytes: peak_memory_bytes(),
+                    peak_memory_bytes: peak,
                 });
             }
         }
