@@ -124,8 +124,9 @@ pub(crate) struct RunArgs {
     /// The most memory a sparse Cholesky factor may take (newton, pd, pd-chebyshev, lbfgs,
     /// newton-cg): bytes with an optional unit K, M, G or T (powers of 1024), e.g. 4G; machine
     /// (half the physical memory); or unlimited. Above it Newton solves its systems by CG with
-    /// the AMG preconditioner instead of factoring them, and the PD-based integrators are refused
-    /// with the size needed (docs/solvers.md §2.5). Default: the scene file's, else machine.
+    /// the AMG preconditioner instead of factoring them, and the PD-based integrators solve their
+    /// global step by CG with AMG (docs/solvers.md §2.5, §6.1). Default: the scene file's, else
+    /// machine.
     #[arg(long, value_name = "BYTES|machine|unlimited")]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     memory_budget: Option<String>,

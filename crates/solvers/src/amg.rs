@@ -21,12 +21,89 @@
 //! on rayon, each row summed in a fixed order, so the result has the same bits whatever the thread
 //! count. Every buffer of the cycle is allocated at set-up.
 
+use std::ops::{AddAssign, Mul, SubAssign};
+
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::MatMut;
+use nalgebra::SVector;
 use rayon::prelude::*;
 
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
 use crate::operator::{LinearOperator, Preconditioner};
 use crate::params::{self, ParamError};
+
+/// What one unknown carries through a V-cycle: one value (`f64`, [`Amg`] as a [`Preconditioner`])
+/// or the D values of D right-hand sides at once (`SVector<f64, D>`, [`Amg::apply_columns`]: the
+/// columns of (A ⊗ I_D), as projective dynamics' D coordinates, so that each level's matrix is
+/// read once for all of them). Every operation is per column, so a column's values are those of
+/// the one-value cycle on that column.
+trait Lane: Copy + Send + Sync + AddAssign + SubAssign + Mul<f64, Output = Self> {
+    /// The zero value.
+    fn zero() -> Self;
+
+    /// Solve the coarsest level in place with its factor; `scratch` is the column-major buffer
+    /// of a multi-column solve.
+    fn solve_coarse(factor: &mut SparseCholesky, x: &mut [Self], scratch: &mut Vec<f64>);
+}
+
+impl Lane for f64 {
+    fn zero() -> Self {
+        0.0
+    }
+
+    fn solve_coarse(factor: &mut SparseCholesky, x: &mut [f64], _: &mut Vec<f64>) {
+        factor.solve_slice(x);
+    }
+}
+
+impl<const D: usize> Lane for SVector<f64, D> {
+    fn zero() -> Self {
+        SVector::zeros()
+    }
+
+    fn solve_coarse(factor: &mut SparseCholesky, x: &mut [Self], scratch: &mut Vec<f64>) {
+        let n = x.len();
+        scratch.resize(n * D, 0.0);
+        for (i, v) in x.iter().enumerate() {
+            for a in 0..D {
+                scratch[a * n + i] = v[a];
+            }
+        }
+        factor.solve_in_place(MatMut::from_column_major_slice_mut(scratch, n, D));
+        for (i, v) in x.iter_mut().enumerate() {
+            for a in 0..D {
+                v[a] = scratch[a * n + i];
+            }
+        }
+    }
+}
+
+/// The vectors of a V-cycle on one level: right-hand side, solution, residual.
+#[derive(Clone, Debug)]
+struct Cycle<T> {
+    b: Vec<T>,
+    x: Vec<T>,
+    r: Vec<T>,
+}
+
+impl<T: Lane> Cycle<T> {
+    fn new(n: usize) -> Self {
+        Cycle {
+            b: vec![T::zero(); n],
+            x: vec![T::zero(); n],
+            r: vec![T::zero(); n],
+        }
+    }
+}
+
+/// The buffers of [`Amg::apply_columns`] for D right-hand sides, made by
+/// [`Amg::columns_workspace`] for one hierarchy (every allocation of the column cycle is here).
+#[derive(Clone, Debug)]
+pub struct AmgColumns<const D: usize> {
+    cycle: Vec<Cycle<SVector<f64, D>>>,
+    /// Column-major right-hand sides of the coarsest solve.
+    coarse: Vec<f64>,
+}
 
 /// The largest vertex block (fine block size, or near-nullspace vectors, which become the coarse
 /// blocks): the diagonal blocks are inverted in fixed-size stack arrays.
@@ -201,11 +278,11 @@ impl Csr {
     }
 
     /// y = A x, row-parallel above a size (each row a serial sum: the same bits on any pool).
-    fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let row = |(i, yi): (usize, &mut f64)| {
-            let mut s = 0.0;
+    fn apply<T: Lane>(&self, x: &[T], y: &mut [T]) {
+        let row = |(i, yi): (usize, &mut T)| {
+            let mut s = T::zero();
             for e in self.row(i) {
-                s += self.val[e] * x[self.col[e] as usize];
+                s += x[self.col[e] as usize] * self.val[e];
             }
             *yi = s;
         };
@@ -217,11 +294,11 @@ impl Csr {
     }
 
     /// r = b − A x.
-    fn residual(&self, b: &[f64], x: &[f64], r: &mut [f64]) {
-        let row = |(i, ri): (usize, &mut f64)| {
+    fn residual<T: Lane>(&self, b: &[T], x: &[T], r: &mut [T]) {
+        let row = |(i, ri): (usize, &mut T)| {
             let mut s = b[i];
             for e in self.row(i) {
-                s -= self.val[e] * x[self.col[e] as usize];
+                s -= x[self.col[e] as usize] * self.val[e];
             }
             *ri = s;
         };
@@ -422,10 +499,6 @@ struct Level {
     /// usize::MAX where not stored).
     diag_entries: Vec<usize>,
     transfer: Option<Transfer>,
-    /// The cycle's vectors: right-hand side, solution, residual.
-    b: Vec<f64>,
-    x: Vec<f64>,
-    r: Vec<f64>,
 }
 
 /// The operators between a level and the next coarser one.
@@ -452,6 +525,8 @@ struct Transfer {
 pub struct Amg {
     params: AmgParams,
     levels: Vec<Level>,
+    /// The one-value cycle's vectors, per level.
+    cycle: Vec<Cycle<f64>>,
     coarse: SparseCholesky,
     /// The coarsest matrix' pattern with faer's index type, for its factorisations.
     coarse_pattern: SymbolicSparseColMat<usize>,
@@ -592,9 +667,11 @@ impl Amg {
                 ..CholeskyParams::default()
             },
         )?;
+        let cycle = levels.iter().map(|l| Cycle::new(l.a.n_rows)).collect();
         let mut amg = Amg {
             params,
             levels,
+            cycle,
             coarse,
             coarse_pattern,
             dense: Vec::new(),
@@ -721,47 +798,108 @@ impl Amg {
         Ok(())
     }
 
-    /// One V-cycle: z ≈ A⁻¹ r.
-    fn vcycle(&mut self, r: &[f64], z: &mut [f64]) {
+    /// One V-cycle, z ≈ A⁻¹ r, on the lanes of `cycle` (one [`Cycle`] per level; `scratch` for a
+    /// multi-column coarsest solve).
+    fn vcycle<T: Lane>(
+        &mut self,
+        cycle: &mut [Cycle<T>],
+        scratch: &mut Vec<f64>,
+        r: &[T],
+        z: &mut [T],
+    ) {
         let sweeps = self.params.smoother_sweeps;
         let symmetric_each_side = self.params.smoother == AmgSmoother::SymmetricGaussSeidel;
-        self.levels[0].b.copy_from_slice(r);
+        cycle[0].b.copy_from_slice(r);
         let depth = self.levels.len();
-        for l in 0..depth - 1 {
-            let (upper, lower) = self.levels.split_at_mut(l + 1);
-            let level = &mut upper[l];
-            level.x.fill(0.0);
+        for (l, level) in self.levels[..depth - 1].iter().enumerate() {
+            let (upper, lower) = cycle.split_at_mut(l + 1);
+            let v = &mut upper[l];
+            v.x.fill(T::zero());
             for _ in 0..sweeps {
-                level.sweep(true);
+                level.sweep(&v.b, &mut v.x, true);
                 if symmetric_each_side {
-                    level.sweep(false);
+                    level.sweep(&v.b, &mut v.x, false);
                 }
             }
-            level.a.residual(&level.b, &level.x, &mut level.r);
+            level.a.residual(&v.b, &v.x, &mut v.r);
             let tr = level.transfer.as_ref().expect("above the coarsest");
-            tr.r.apply(&level.r, &mut lower[0].b);
+            tr.r.apply(&v.r, &mut lower[0].b);
         }
         {
-            let last = self.levels.last_mut().expect("one level");
+            let last = &mut cycle[depth - 1];
             last.x.copy_from_slice(&last.b);
-            self.coarse.solve_slice(&mut last.x);
+            T::solve_coarse(&mut self.coarse, &mut last.x, scratch);
         }
-        for l in (0..depth - 1).rev() {
-            let (upper, lower) = self.levels.split_at_mut(l + 1);
-            let level = &mut upper[l];
+        for (l, level) in self.levels[..depth - 1].iter().enumerate().rev() {
+            let (upper, lower) = cycle.split_at_mut(l + 1);
+            let v = &mut upper[l];
             let tr = level.transfer.as_ref().expect("above the coarsest");
-            tr.p.apply(&lower[0].x, &mut level.r);
-            for (x, c) in level.x.iter_mut().zip(&level.r) {
-                *x += c;
+            tr.p.apply(&lower[0].x, &mut v.r);
+            for (x, c) in v.x.iter_mut().zip(&v.r) {
+                *x += *c;
             }
             for _ in 0..sweeps {
                 if symmetric_each_side {
-                    level.sweep(true);
+                    level.sweep(&v.b, &mut v.x, true);
                 }
-                level.sweep(false);
+                level.sweep(&v.b, &mut v.x, false);
             }
         }
-        z.copy_from_slice(&self.levels[0].x);
+        z.copy_from_slice(&cycle[0].x);
+    }
+
+    /// Buffers for [`Amg::apply_columns`] with D right-hand sides.
+    pub fn columns_workspace<const D: usize>(&self) -> AmgColumns<D> {
+        AmgColumns {
+            cycle: self.levels.iter().map(|l| Cycle::new(l.a.n_rows)).collect(),
+            coarse: Vec::with_capacity(D * self.levels.last().map_or(0, |l| l.a.n_rows)),
+        }
+    }
+
+    /// One V-cycle for each of D right-hand sides at once: z[·][a] ≈ A⁻¹ r[·][a] for every column
+    /// a (entry i of `r` holds unknown i of the D right-hand sides), with each level's matrix read
+    /// once for all D. Column a's values are those of [`Preconditioner::apply`] on column a, but
+    /// for the coarsest solve's rounding (faer's multi-column triangular solves). Allocates
+    /// nothing.
+    ///
+    /// # Panics
+    /// If `r` or `z` is not of the matrix' dimension, or `work` was made for another hierarchy.
+    #[track_caller]
+    pub fn apply_columns<const D: usize>(
+        &mut self,
+        work: &mut AmgColumns<D>,
+        r: &[SVector<f64, D>],
+        z: &mut [SVector<f64, D>],
+    ) {
+        let n = self.levels[0].a.n_rows;
+        assert!(r.len() == n && z.len() == n, "vector lengths");
+        assert!(
+            work.cycle.len() == self.levels.len()
+                && work
+                    .cycle
+                    .iter()
+                    .zip(&self.levels)
+                    .all(|(c, l)| c.b.len() == l.a.n_rows),
+            "the workspace of another hierarchy"
+        );
+        let AmgColumns { cycle, coarse } = work;
+        self.vcycle(cycle, coarse, r, z);
+    }
+
+    /// y = A x for D columns at once with the finest matrix (row-parallel above a size; the same
+    /// bits whatever the thread count).
+    ///
+    /// # Panics
+    /// If `x` or `y` is not of the matrix' dimension.
+    #[track_caller]
+    pub fn product_columns<const D: usize>(
+        &self,
+        x: &[SVector<f64, D>],
+        y: &mut [SVector<f64, D>],
+    ) {
+        let a = &self.levels[0].a;
+        assert!(x.len() == a.n_cols && y.len() == a.n_rows, "vector lengths");
+        a.apply(x, y);
     }
 }
 
@@ -774,7 +912,9 @@ impl Preconditioner for Amg {
     fn apply(&mut self, r: &[f64], z: &mut [f64]) {
         let n = self.levels[0].a.n_rows;
         assert!(r.len() == n && z.len() == n, "vector lengths");
-        self.vcycle(r, z);
+        let mut cycle = std::mem::take(&mut self.cycle);
+        self.vcycle(&mut cycle, &mut Vec::new(), r, z);
+        self.cycle = cycle;
     }
 }
 
@@ -813,7 +953,6 @@ impl Level {
                 }
             }
         }
-        let n = a.n_rows;
         Level {
             a,
             block_ptr,
@@ -821,9 +960,6 @@ impl Level {
             diag_inv: vec![0.0; total],
             diag_entries,
             transfer: None,
-            b: vec![0.0; n],
-            x: vec![0.0; n],
-            r: vec![0.0; n],
         }
     }
 
@@ -843,27 +979,27 @@ impl Level {
     }
 
     /// One block Gauss–Seidel sweep on A x = b, forward or backward over the blocks.
-    fn sweep(&mut self, forward: bool) {
+    fn sweep<T: Lane>(&self, b: &[T], x: &mut [T], forward: bool) {
         let blocks = self.block_ptr.len() - 1;
-        let mut s = [0.0; AMG_MAX_BLOCK];
+        let mut s = [T::zero(); AMG_MAX_BLOCK];
         for step in 0..blocks {
-            let b = if forward { step } else { blocks - 1 - step };
-            let (lo, hi) = (self.block_ptr[b], self.block_ptr[b + 1]);
+            let blk = if forward { step } else { blocks - 1 - step };
+            let (lo, hi) = (self.block_ptr[blk], self.block_ptr[blk + 1]);
             let k = hi - lo;
             for i in lo..hi {
-                let mut v = self.b[i];
+                let mut v = b[i];
                 for e in self.a.row(i) {
-                    v -= self.a.val[e] * self.x[self.a.col[e] as usize];
+                    v -= x[self.a.col[e] as usize] * self.a.val[e];
                 }
                 s[i - lo] = v;
             }
-            let inv = &self.diag_inv[self.diag_offset[b]..self.diag_offset[b] + k * k];
+            let inv = &self.diag_inv[self.diag_offset[blk]..self.diag_offset[blk] + k * k];
             for i in 0..k {
-                let mut d = 0.0;
+                let mut d = T::zero();
                 for j in 0..k {
-                    d += inv[i * k + j] * s[j];
+                    d += s[j] * inv[i * k + j];
                 }
-                self.x[lo + i] += d;
+                x[lo + i] += d;
             }
         }
     }
@@ -957,20 +1093,34 @@ fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
     for b in 0..blocks {
         block_of[block_ptr[b]..block_ptr[b + 1]].fill(b);
     }
-    // Block graph with squared Frobenius norms.
-    let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); blocks];
+    // Squared Frobenius norms of the diagonal blocks, then the strong neighbours of each block,
+    // sorted, in one flat list (block b's at strong_col[strong_ptr[b]..strong_ptr[b + 1]]): a
+    // list per block would be one allocation per vertex.
     let mut diag = vec![0.0; blocks];
+    for b in 0..blocks {
+        for i in block_ptr[b]..block_ptr[b + 1] {
+            for e in a.row(i) {
+                if block_of[a.col[e] as usize] == b {
+                    diag[b] += a.val[e] * a.val[e];
+                }
+            }
+        }
+    }
+    let mut strong_ptr = Vec::with_capacity(blocks + 1);
+    strong_ptr.push(0);
+    let mut strong_col: Vec<u32> = Vec::with_capacity(a.col.len() / block_ptr[1].max(1));
     // Per block, its slot in the current block's neighbour list (valid when `owner` is b).
     let mut slot = vec![0usize; blocks];
     let mut owner = vec![usize::MAX; blocks];
+    let mut list: Vec<(usize, f64)> = Vec::new();
     for b in 0..blocks {
-        let list = &mut neighbours[b];
+        list.clear();
         for i in block_ptr[b]..block_ptr[b + 1] {
             for e in a.row(i) {
                 let c = block_of[a.col[e] as usize];
                 let v = a.val[e] * a.val[e];
                 if c == b {
-                    diag[b] += v;
+                    continue;
                 } else if owner[c] == b {
                     list[slot[c]].1 += v;
                 } else {
@@ -981,42 +1131,44 @@ fn aggregate(a: &Csr, block_ptr: &[usize], theta: f64) -> Vec<usize> {
             }
         }
         list.sort_unstable_by_key(|&(n, _)| n);
-    }
-    let strong: Vec<Vec<usize>> = (0..blocks)
-        .map(|b| {
-            neighbours[b]
-                .iter()
+        strong_col.extend(
+            list.iter()
                 .filter(|&&(c, v)| {
                     theta == 0.0 || v.sqrt() >= theta * (diag[b] * diag[c]).sqrt().sqrt()
                 })
-                .map(|&(c, _)| c)
-                .collect()
-        })
-        .collect();
+                .map(|&(c, _)| c as u32),
+        );
+        strong_ptr.push(strong_col.len());
+    }
+    let strong = |b: usize| {
+        strong_col[strong_ptr[b]..strong_ptr[b + 1]]
+            .iter()
+            .map(|&c| c as usize)
+    };
     const FREE: usize = usize::MAX;
     let mut agg = vec![FREE; blocks];
     let mut count = 0;
     for b in 0..blocks {
-        if agg[b] == FREE && strong[b].iter().all(|&c| agg[c] == FREE) {
+        if agg[b] == FREE && strong(b).all(|c| agg[c] == FREE) {
             agg[b] = count;
-            for &c in &strong[b] {
+            for c in strong(b) {
                 agg[c] = count;
             }
             count += 1;
         }
     }
     let first_pass = agg.clone();
-    for b in 0..blocks {
-        if agg[b] == FREE {
-            if let Some(&c) = strong[b].iter().find(|&&c| first_pass[c] != FREE) {
-                agg[b] = first_pass[c];
+    for (b, a) in agg.iter_mut().enumerate() {
+        if *a == FREE {
+            if let Some(c) = strong(b).find(|&c| first_pass[c] != FREE) {
+                *a = first_pass[c];
             }
         }
     }
     for b in 0..blocks {
         if agg[b] == FREE {
             agg[b] = count;
-            for &c in &strong[b] {
+            for c in strong(b) {
                 if agg[c] == FREE {
                     agg[c] = count;
                 }

@@ -5,6 +5,8 @@
 use hooke_assembly::{
     CounterForce, Definiteness, FreeDofs, HessianPattern, HessianWorkspace, SpringForces,
 };
+use std::sync::OnceLock;
+
 use hooke_mesh::Spring;
 
 use crate::params::ParamError;
@@ -83,11 +85,12 @@ fn spring_energy_change_from<const D: usize>(
 #[derive(Debug)]
 pub struct BackwardEulerStep<const D: usize> {
     free: FreeDofs,
-    pattern: HessianPattern<D>,
+    /// The Hessian's pattern, assembly workspace and values, made when first asked for: a step
+    /// whose solver never assembles a Hessian (L-BFGS, Anderson-accelerated PD, a gradient-only
+    /// measurement) never stores one (on cloth-640, 0.7 GB).
+    assembly: OnceLock<HessianAssembly<D>>,
     /// Counter-force mode: every vertex an unknown, the pinned rows and columns replaced.
     counter: Option<CounterForce<D>>,
-    workspace: HessianWorkspace<D>,
-    values: Vec<f64>,
     forces: SpringForces<D>,
     force: Vec<SVector<f64, D>>,
     masses: Vec<f64>,
@@ -142,6 +145,24 @@ pub struct BackwardEulerStep<const D: usize> {
     start_guess: Vec<f64>,
 }
 
+/// A Hessian pattern with the workspace and values of its assembly.
+#[derive(Debug)]
+pub(crate) struct HessianAssembly<const D: usize> {
+    pub(crate) pattern: HessianPattern<D>,
+    pub(crate) workspace: HessianWorkspace<D>,
+    pub(crate) values: Vec<f64>,
+}
+
+impl<const D: usize> HessianAssembly<D> {
+    fn new(pattern: HessianPattern<D>) -> Self {
+        HessianAssembly {
+            workspace: pattern.workspace(),
+            values: pattern.new_values(),
+            pattern,
+        }
+    }
+}
+
 impl<const D: usize> BackwardEulerStep<D> {
     /// The step for `springs` and `masses` (kg, per vertex) over the free vertices of `free`, with
     /// time step `h` (s): pins by reduction, one unknown per free DOF.
@@ -168,13 +189,14 @@ impl<const D: usize> BackwardEulerStep<D> {
     fn build(springs: &[Spring], masses: &[f64], free: FreeDofs, h: f64, counter: bool) -> Self {
         let n = free.vertex_count();
         assert_eq!(masses.len(), n, "one mass per vertex");
-        let (pattern, counter) = if counter {
-            let pattern = HessianPattern::new(n, springs, None);
-            let counter = CounterForce::new(&pattern, &free);
-            (pattern, Some(counter))
-        } else {
-            (HessianPattern::new(n, springs, Some(&free)), None)
-        };
+        // Counter-force mode needs the pattern now (its pinned entries); otherwise it waits.
+        let assembly = OnceLock::new();
+        let counter = counter.then(|| {
+            let built = HessianAssembly::new(HessianPattern::new(n, springs, None));
+            let counter = CounterForce::new(&built.pattern, &free);
+            assembly.get_or_init(|| built);
+            counter
+        });
         // The shift's diagonal, one mass per unknown.
         let shift = if counter.is_some() {
             masses.iter().flat_map(|&m| [m; D]).collect()
@@ -207,8 +229,6 @@ impl<const D: usize> BackwardEulerStep<D> {
             .max()
             .unwrap_or(0);
         BackwardEulerStep {
-            workspace: pattern.workspace(),
-            values: pattern.new_values(),
             forces: SpringForces::new(n, springs),
             force: vec![SVector::zeros(); n],
             masses: masses.to_vec(),
@@ -225,7 +245,15 @@ impl<const D: usize> BackwardEulerStep<D> {
             incident_lengths: vec![0.0; max_degree],
             definiteness: Definiteness::Exact,
             definite_share: DEFAULT_DEFINITE_SHARE,
-            loads: vec![0.0; pattern.dof_count() / D],
+            // One per block column of the pattern.
+            loads: vec![
+                0.0;
+                if counter.is_some() {
+                    n
+                } else {
+                    free.free_count()
+                }
+            ],
             scales: vec![1.0; springs.len()],
             projected_springs: 0,
             parallel: true,
@@ -240,9 +268,20 @@ impl<const D: usize> BackwardEulerStep<D> {
             contact_scratch: Vec::new(),
             start_guess: Vec::new(),
             free,
-            pattern,
+            assembly,
             counter,
         }
+    }
+
+    /// The Hessian's pattern and buffers, made on first use.
+    pub(crate) fn assembly(&self) -> &HessianAssembly<D> {
+        self.assembly.get_or_init(|| {
+            HessianAssembly::new(HessianPattern::new(
+                self.free.vertex_count(),
+                &self.springs,
+                Some(&self.free),
+            ))
+        })
     }
 
     /// Run the per-spring loops (energy, forces, Hessian assembly) with rayon or serially (default:

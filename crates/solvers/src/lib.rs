@@ -60,7 +60,7 @@ mod params;
 pub mod projective;
 mod report;
 
-pub use amg::{Amg, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
+pub use amg::{Amg, AmgColumns, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
 pub use anderson::{
     AndersonParams, AndersonPd, AndersonReport, ANDERSON_MAX_ITERATIONS, ANDERSON_MAX_WINDOW,
 };
@@ -89,7 +89,7 @@ pub use newton_cg::{
 pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmetric};
 pub use params::{ParamError, MAX_THREADS};
 pub use projective::{
-    FixedPointError, PdContactModel, PdError, PdParams, PdReport, ProjectiveDynamics,
-    DEFAULT_CONTACT_WEIGHT,
+    FixedPointError, GlobalSolveKind, PdContactModel, PdError, PdMultilevelParams, PdParams,
+    PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT, MULTILEVEL_PD_UNKNOWNS,
 };
 pub use report::{Report, SolveError, SolveSummary, StopReason};

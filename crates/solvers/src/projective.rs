@@ -10,19 +10,22 @@
 
 use std::time::{Duration, Instant};
 
-use faer::MatMut;
 use hooke_assembly::pd::{local_step, LaplacianPattern};
 use hooke_assembly::{spring_energy, FreeDofs};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
 mod contact;
+mod global;
 
 pub use contact::{PdContactModel, DEFAULT_CONTACT_WEIGHT};
+pub(crate) use global::GlobalSolve;
+use global::{DirectSolve, MultilevelSolve};
+pub use global::{GlobalSolveKind, PdMultilevelParams, MULTILEVEL_PD_UNKNOWNS};
 
+use crate::amg::AmgError;
 use crate::backward_euler::spring_energy_change;
 use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky};
-use crate::forest_solve::{self, ForestSolve};
 use crate::operator::Preconditioner;
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
@@ -40,11 +43,24 @@ pub enum PdError {
     /// non-finite values).
     #[error(transparent)]
     Factorization(#[from] CholeskyError),
+    /// The multilevel global step's hierarchy could not be built or refilled (e.g. a free
+    /// component with zero mass and no pin, or non-finite values).
+    #[error("the multilevel global step: {0}")]
+    Multilevel(#[from] AmgError),
+}
+
+impl From<global::GlobalSolveError> for PdError {
+    fn from(e: global::GlobalSolveError) -> Self {
+        match e {
+            global::GlobalSolveError::Factorization(e) => PdError::Factorization(e),
+            global::GlobalSolveError::Multilevel(e) => PdError::Multilevel(e),
+        }
+    }
 }
 
 impl PdParams {
-    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (m/s), and
-    /// [`CholeskyParams::validate`].
+    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (m/s),
+    /// [`PdMultilevelParams::validate`] and [`CholeskyParams::validate`].
     ///
     /// # Errors
     /// [`ParamError`] naming the first field out of range.
@@ -56,6 +72,7 @@ impl PdParams {
             "at least 1",
         )?;
         params::non_negative("PdParams::tolerance", self.tolerance)?;
+        self.multilevel.validate()?;
         self.cholesky.validate()
     }
 }
@@ -79,10 +96,17 @@ pub struct PdParams {
     /// simplicial factor (up to 50,000 unknowns, [`ProjectiveDynamics::factor_kind_for`]) is solved
     /// for all D coordinates in one pass, split along its elimination tree into two halves that run
     /// on two threads when it has at least 32,768 stored values; a supernodal one by faer, its
-    /// columns split over [`CholeskyParams::solve_threads`]. Default true.
+    /// columns split over [`CholeskyParams::solve_threads`]. The multilevel path's products and
+    /// sums run on rayon above a size whatever this flag (the same bits on any thread count).
+    /// Default true.
     pub parallel: bool,
-    /// Factorisation settings. [`FactorKind::Auto`] picks by size for the solve
-    /// ([`ProjectiveDynamics::factor_kind_for`]).
+    /// How the global step is solved: by the prefactored matrix or on the multilevel path.
+    /// Default [`GlobalSolveKind::Auto`] ([`ProjectiveDynamics::global_solve_for`]).
+    pub global_solve: GlobalSolveKind,
+    /// The multilevel path's settings.
+    pub multilevel: PdMultilevelParams,
+    /// Factorisation settings of the direct path. [`FactorKind::Auto`] picks by size for the
+    /// solve ([`ProjectiveDynamics::factor_kind_for`]).
     pub cholesky: CholeskyParams,
 }
 
@@ -93,6 +117,8 @@ impl Default for PdParams {
             tolerance: 0.0,
             record_objective: false,
             parallel: true,
+            global_solve: GlobalSolveKind::Auto,
+            multilevel: PdMultilevelParams::default(),
             // A supernodal factor's columns split over two threads (the same bits as serial;
             // 1.28× on cloth-320's solve): `parallel: false` solves them on one.
             cholesky: CholeskyParams {
@@ -112,6 +138,9 @@ pub struct PdReport {
     pub changes: Vec<f64>,
     /// Φ before the first iteration and after each one (J), if recorded.
     pub objectives: Vec<f64>,
+    /// Conjugate gradient iterations of the multilevel global steps, summed over the
+    /// iterations (0 on the direct path).
+    pub linear_iterations: usize,
     /// Why it stopped.
     pub stop: StopReason,
     /// Wall time of the solve (the factorisation is done once, apart: see
@@ -134,91 +163,6 @@ pub struct ProjectiveDynamics<const D: usize> {
     rhs: Vec<SVector<f64, D>>,
     /// Contact with obstacles, if set ([`ProjectiveDynamics::set_contact`]).
     contact: Option<Box<PdContact<D>>>,
-}
-
-/// The prefactored global matrix and the buffers of its D-column solve.
-#[derive(Debug)]
-pub(crate) struct GlobalSolve<const D: usize> {
-    cholesky: SparseCholesky,
-    /// Column-major right-hand sides for the supernodal solve.
-    columns: Vec<f64>,
-    /// The factor laid out for the split solve of the D coordinates (simplicial factors), and
-    /// the right-hand sides in its order.
-    forest: Option<ForestSolve<D>>,
-    ordered: Vec<SVector<f64, D>>,
-}
-
-impl<const D: usize> GlobalSolve<D> {
-    pub(crate) fn new(cholesky: SparseCholesky) -> Self {
-        let n = cholesky.dim();
-        GlobalSolve {
-            cholesky,
-            columns: vec![0.0; D * n],
-            forest: None,
-            ordered: Vec::new(),
-        }
-    }
-
-    /// Factor `matrix` (the pattern of the analysis). After a failure no stale factor is used.
-    pub(crate) fn factor(
-        &mut self,
-        matrix: faer::sparse::SparseColMatRef<'_, usize, f64>,
-    ) -> Result<(), CholeskyError> {
-        // The layout is kept across factorisations (the pattern does not change), but only a
-        // successful one refills it.
-        let layout = self.forest.take();
-        self.cholesky.factorize(matrix)?;
-        self.forest = match (layout, self.cholesky.llt_values()) {
-            (Some(mut forest), Some(values)) => {
-                forest.refill(values);
-                Some(forest)
-            }
-            _ => self.cholesky.forest_solve(),
-        };
-        let rows = self.forest.as_ref().map_or(0, ForestSolve::dim);
-        self.ordered.resize(rows, SVector::zeros());
-        Ok(())
-    }
-
-    /// Solve for the D columns of `rhs` (one D-vector per free vertex) and hand each solution to
-    /// `out(free index, solution)`, on two threads if `threads` (same bits either way).
-    pub(crate) fn solve(
-        &mut self,
-        rhs: &[SVector<f64, D>],
-        threads: bool,
-        mut out: impl FnMut(usize, SVector<f64, D>),
-    ) {
-        let n = rhs.len();
-        if let Some(forest) = &mut self.forest {
-            for (o, &f) in self.ordered.iter_mut().zip(forest.order()) {
-                *o = rhs[f as usize];
-            }
-            forest.solve_ordered(&mut self.ordered, threads);
-            for (new, &f) in self.ordered.iter().zip(forest.order()) {
-                out(f as usize, *new);
-            }
-        } else {
-            for (f, r) in rhs.iter().enumerate() {
-                for a in 0..D {
-                    self.columns[a * n + f] = r[a];
-                }
-            }
-            self.cholesky
-                .solve_in_place(MatMut::from_column_major_slice_mut(&mut self.columns, n, D));
-            for f in 0..n {
-                out(
-                    f,
-                    SVector::<f64, D>::from_fn(|a, _| self.columns[a * n + f]),
-                );
-            }
-        }
-    }
-
-    /// Whether the split solve pays for a fork: a factor of at least
-    /// [`forest_solve::SPLIT_MIN_VALUES`] stored values.
-    fn is_large(&self) -> bool {
-        self.cholesky.factor_nnz() >= forest_solve::SPLIT_MIN_VALUES
-    }
 }
 
 impl<const D: usize> ProjectiveDynamics<D> {
@@ -251,13 +195,31 @@ impl<const D: usize> ProjectiveDynamics<D> {
             },
             ..params.cholesky
         };
-        let cholesky = SparseCholesky::analyze(pattern.symbolic(), cholesky_params)?;
         let n_free = free.free_count();
+        let multilevel =
+            || GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(n_free, params.multilevel)));
+        let kind = match params.global_solve {
+            GlobalSolveKind::Auto => Self::global_solve_for(n_free),
+            kind => kind,
+        };
+        let global = match kind {
+            GlobalSolveKind::Multilevel => multilevel(),
+            _ => match SparseCholesky::analyze(pattern.symbolic(), cholesky_params) {
+                Ok(cholesky) => GlobalSolve::Direct(Box::new(DirectSolve::new(cholesky))),
+                // Over the memory budget, Auto takes the path that needs no factor.
+                Err(CholeskyError::OverBudget { .. })
+                    if params.global_solve == GlobalSolveKind::Auto =>
+                {
+                    multilevel()
+                }
+                Err(e) => return Err(e.into()),
+            },
+        };
         let mut pd = ProjectiveDynamics {
             params,
             values: pattern.new_values(),
             pattern,
-            global: GlobalSolve::new(cholesky),
+            global,
             masses: masses.to_vec(),
             h,
             d: springs
@@ -273,6 +235,26 @@ impl<const D: usize> ProjectiveDynamics<D> {
         };
         pd.refactor(springs, masses, h)?;
         Ok(pd)
+    }
+
+    /// The global solve [`GlobalSolveKind::Auto`] takes for `unknowns` free vertices (if the
+    /// factor fits in the memory budget): [`GlobalSolveKind::Multilevel`] above
+    /// [`MULTILEVEL_PD_UNKNOWNS`], [`GlobalSolveKind::Direct`] otherwise.
+    pub fn global_solve_for(unknowns: usize) -> GlobalSolveKind {
+        if unknowns > MULTILEVEL_PD_UNKNOWNS {
+            GlobalSolveKind::Multilevel
+        } else {
+            GlobalSolveKind::Direct
+        }
+    }
+
+    /// The global solve this system takes ([`GlobalSolveKind::Direct`] or
+    /// [`GlobalSolveKind::Multilevel`]).
+    pub fn global_solve(&self) -> GlobalSolveKind {
+        match self.global {
+            GlobalSolve::Direct(_) => GlobalSolveKind::Direct,
+            GlobalSolve::Multilevel(_) => GlobalSolveKind::Multilevel,
+        }
     }
 
     /// The factor organisation [`FactorKind::Auto`] means here. The matrix is factored once and solved
@@ -294,12 +276,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
     ///
     /// # Errors
     /// As [`ProjectiveDynamics::new`].
-    pub fn refactor(
-        &mut self,
-        springs: &[Spring],
-        masses: &[f64],
-        h: f64,
-    ) -> Result<(), CholeskyError> {
+    pub fn refactor(&mut self, springs: &[Spring], masses: &[f64], h: f64) -> Result<(), PdError> {
         self.masses.copy_from_slice(masses);
         self.h = h;
         self.pattern
@@ -312,19 +289,20 @@ impl<const D: usize> ProjectiveDynamics<D> {
     }
 
     /// Whether the split solve runs its two bins on two threads: in parallel mode, for factors
-    /// large enough to pay for the fork ([`forest_solve::SPLIT_MIN_VALUES`]).
+    /// large enough to pay for the fork ([`crate::forest_solve::SPLIT_MIN_VALUES`]).
     fn split_threads(&self) -> bool {
         self.params.parallel && self.params.cholesky.solve_threads > 1 && self.global.is_large()
     }
 
-    /// Time of the last numeric factorisation (amortised over every step until the next refactor).
+    /// Time of the last numeric factorisation, or on the multilevel path of the hierarchy's
+    /// set-up or refill (amortised over every step until the next refactor).
     pub fn factor_time(&self) -> Duration {
-        self.global.cholesky.factor_time()
+        self.global.prepare_time()
     }
 
-    /// Stored values of the Cholesky factor.
+    /// Stored values of the Cholesky factor (0 on the multilevel path, which stores none).
     pub fn factor_nnz(&self) -> usize {
-        self.global.cholesky.factor_nnz()
+        self.global.cholesky().map_or(0, SparseCholesky::factor_nnz)
     }
 
     /// Φ(x) = ½ Σ m_v |x_v − y_v|² + h² E(x) over all vertices, in kg·m² (J·s²). Pinned vertices add a
@@ -414,6 +392,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
             } else {
                 0
             }),
+            linear_iterations: 0,
             stop: StopReason::IterationLimit,
             wall_time: Duration::ZERO,
         };
@@ -426,6 +405,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
         while report.iterations < p.max_iterations {
             let change = self.iteration(springs, y, x, &mut largest_displacement);
             report.iterations += 1;
+            report.linear_iterations += self.last_linear_iterations();
             report.changes.push(change);
             if p.record_objective {
                 report.objectives.push(self.objective(springs, y, x));
@@ -458,6 +438,8 @@ impl<const D: usize> ProjectiveDynamics<D> {
             .rhs_into(springs, &self.d, y, x, &self.masses, self.h, &mut self.rhs);
         let threads = self.split_threads();
         let free_vertices = self.pattern.free_dofs().free_vertices();
+        // The multilevel path starts from the current iterate, which makes its step a descent.
+        self.global.guess(|f| x[free_vertices[f] as usize]);
         let mut change: f64 = 0.0;
         let mut update = |x: &mut [SVector<f64, D>], vertex: usize, new: SVector<f64, D>| {
             change = change.max((new - x[vertex]).amax());
@@ -478,6 +460,14 @@ impl<const D: usize> ProjectiveDynamics<D> {
             }),
         }
         change
+    }
+
+    /// CG iterations of the last global step (0 on the direct path).
+    pub(crate) fn last_linear_iterations(&self) -> usize {
+        match &self.contact {
+            Some(contact) if contact.active_count() > 0 => contact.last_linear_iterations(),
+            _ => self.global.last_iterations(),
+        }
     }
 
     /// With contact, begin a step: `x` holds the step's start (outside every obstacle) and
@@ -525,15 +515,23 @@ impl<const D: usize> ProjectiveDynamics<D> {
             return Ok(());
         };
         model.validate()?;
-        let cholesky = SparseCholesky::with_symbolic(
-            self.global.cholesky.symbolic().clone(),
-            self.pattern.symbolic(),
-            *self.global.cholesky.params(),
-            self.global.cholesky.analysis_time(),
-        )?;
+        let weighted = match self.global.cholesky() {
+            Some(cholesky) => {
+                GlobalSolve::Direct(Box::new(DirectSolve::new(SparseCholesky::with_symbolic(
+                    cholesky.symbolic().clone(),
+                    self.pattern.symbolic(),
+                    *cholesky.params(),
+                    cholesky.analysis_time(),
+                )?)))
+            }
+            None => GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(
+                self.pattern.size(),
+                self.params.multilevel,
+            ))),
+        };
         self.contact = Some(Box::new(PdContact::new(
             model,
-            cholesky,
+            weighted,
             &self.pattern,
             springs,
             &self.masses,
@@ -571,8 +569,9 @@ impl<const D: usize> ProjectiveDynamics<D> {
     }
 }
 
-/// z = (K (M + h² L) Kᵀ ⊗ I_D)⁻¹ r with the prefactored matrix: the initial inverse Hessian of
-/// [`Lbfgs`](crate::Lbfgs) for a backward Euler step (one D-column solve). `r` and `z` are in the
+/// z = (K (M + h² L) Kᵀ ⊗ I_D)⁻¹ r with the prefactored matrix, or on the multilevel path
+/// z ≈ that by one V-cycle (a fixed symmetric positive definite operator): the initial inverse
+/// Hessian of [`Lbfgs`](crate::Lbfgs) for a backward Euler step (one D-column solve). `r` and `z` are in the
 /// layout of [`BackwardEulerStep`](crate::BackwardEulerStep)'s reduced unknowns: coordinate a of the
 /// f-th free vertex at D·f + a.
 impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
@@ -585,7 +584,7 @@ impl<const D: usize> Preconditioner for ProjectiveDynamics<D> {
         for (f, r) in self.rhs.iter_mut().zip(r.chunks_exact(D)) {
             *f = SVector::from_column_slice(r);
         }
-        self.global.solve(&self.rhs, threads, |f, o| {
+        self.global.precondition(&self.rhs, threads, |f, o| {
             z[D * f..D * f + D].copy_from_slice(o.as_slice());
         });
     }

@@ -14,8 +14,9 @@ use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
     Amg, AmgParams, AndersonParams, AndersonPd, BackwardEulerStep, BlockJacobi, CgParams,
-    ChebyshevParams, ChebyshevPd, ConjugateGradient, Jacobi, JacobiParams, Newton, NewtonParams,
-    NewtonProblem, PdParams, Preconditioner, ProjectiveDynamics, Relaxation, Symmetric,
+    ChebyshevParams, ChebyshevPd, ConjugateGradient, GlobalSolveKind, Jacobi, JacobiParams, Newton,
+    NewtonParams, NewtonProblem, PdParams, Preconditioner, ProjectiveDynamics, Relaxation,
+    Symmetric,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -77,32 +78,55 @@ fn solvers_do_not_allocate_per_iteration() {
         Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
     });
 
-    // Projective dynamics, serial and parallel local steps.
-    for parallel in [false, true] {
-        let mut pd = ProjectiveDynamics::<3>::new(
-            mesh.springs(),
-            mesh.masses(),
-            &free,
-            h,
-            PdParams {
-                parallel,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let mut run = |iterations: usize| {
-            pd.params.max_iterations = iterations;
-            let mut x = y.clone();
-            allocations(|| {
-                pd.solve(mesh.springs(), &y, &mut x).unwrap();
-            })
-        };
-        run(3); // warm-up: rayon's pool and any lazily sized buffer
-        let (few, many) = (fewest(|| run(2)), fewest(|| run(40)));
-        assert_eq!(
-            few, many,
-            "PD (parallel: {parallel}): {few} allocations in 2 iterations, {many} in 40"
-        );
+    // Projective dynamics, serial and parallel local steps; the direct path on cloth-16, the
+    // multilevel one on cloth-16 (one level: the coarsest solve alone) and on cloth-96 (two
+    // levels, and above the sizes where its products and sums go parallel).
+    let big = generators::cloth(96, 1e3).unwrap();
+    let big_free = FreeDofs::new(big.vertex_count(), &[0, 95]).unwrap();
+    let big_y = inertial_target(big.positions(), &[0, 95], |_, x| {
+        Vector3::new(0.0, -9.81 * h * h, 0.0) + Vector3::new(0.0, 0.0, 0.01 * x.x)
+    });
+    for (global_solve, mesh, free, y) in [
+        (GlobalSolveKind::Direct, &mesh, &free, &y),
+        (GlobalSolveKind::Multilevel, &mesh, &free, &y),
+        (GlobalSolveKind::Multilevel, &big, &big_free, &big_y),
+    ] {
+        for parallel in [false, true] {
+            let mut pd = ProjectiveDynamics::<3>::new(
+                mesh.springs(),
+                mesh.masses(),
+                free,
+                h,
+                PdParams {
+                    parallel,
+                    global_solve,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let mut run = |iterations: usize| {
+                pd.params.max_iterations = iterations;
+                let mut x = y.clone();
+                let mut count = 0;
+                // Inside rayon's pool (see `in_rayon_pool`): the multilevel path's products
+                // and sums fork on cloth-96.
+                in_rayon_pool(|| {
+                    count = allocations(|| {
+                        pd.solve(mesh.springs(), y, &mut x).unwrap();
+                    })
+                });
+                count
+            };
+            run(3); // warm-up: rayon's pool and any lazily sized buffer
+            let (few, many) = (fewest(|| run(2)), fewest(|| run(40)));
+            assert_eq!(
+                few,
+                many,
+                "PD {global_solve:?} on {} vertices (parallel: {parallel}): {few} allocations in \
+                 2 iterations, {many} in 40",
+                mesh.vertex_count()
+            );
+        }
     }
 
     // Chebyshev PD (Φ checked every few iterations, with rollbacks possible) and Anderson PD (its

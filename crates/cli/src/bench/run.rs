@@ -4,9 +4,9 @@ use std::time::{Duration, Instant};
 
 use hooke_solvers::{
     Amg, AmgParams, AndersonParams, AndersonPd, BackwardEulerStep, ChebyshevParams, ChebyshevPd,
-    Convergence, IndefinitePolicy, Lbfgs, LbfgsParams, Newton, NewtonCg, NewtonCgParams,
-    NewtonCgReport, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics, Relaxation,
-    StopReason,
+    Convergence, GlobalSolveKind, IndefinitePolicy, Lbfgs, LbfgsParams, Newton, NewtonCg,
+    NewtonCgParams, NewtonCgReport, NewtonParams, NewtonProblem, PdParams, ProjectiveDynamics,
+    Relaxation, StopReason,
 };
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -233,20 +233,28 @@ impl Runner {
             solver: kind.name().into(),
             reason: e,
         };
-        let pd = || {
+        let pd_with = |global_solve| {
             ProjectiveDynamics::new(
                 mesh.springs(),
                 mesh.masses(),
                 &problem.free(),
                 h,
-                PdParams::default(),
+                PdParams {
+                    global_solve,
+                    ..PdParams::default()
+                },
             )
             .map(Box::new)
             .map_err(|e| solver_error(e.to_string()))
         };
+        let pd = || pd_with(GlobalSolveKind::Auto);
         Ok(match kind {
-            SolverKind::Pd | SolverKind::PdTol => Runner::Pd {
-                pd: pd()?,
+            SolverKind::Pd | SolverKind::PdTol | SolverKind::PdAmg => Runner::Pd {
+                pd: pd_with(if kind == SolverKind::PdAmg {
+                    GlobalSolveKind::Multilevel
+                } else {
+                    GlobalSolveKind::Auto
+                })?,
                 x: problem.y.clone(),
             },
             SolverKind::Lbfgs

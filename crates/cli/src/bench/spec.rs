@@ -14,6 +14,10 @@ pub enum SolverKind {
     /// `pd-tol:T`: projective dynamics until the largest position change of an iteration divided
     /// by h is at most T m/s (at most 10,000 iterations).
     PdTol,
+    /// `pd-amg:K`: as `pd`, with the global step on the multilevel path (CG with a smoothed-
+    /// aggregation V-cycle, docs/solvers.md §6.1) whatever the size; `pd` takes that path only
+    /// above the size where it pays.
+    PdAmg,
     /// `newton:K`: Newton on Φ from x⁰ = y, exactly K iterations (fewer only if it stagnates at
     /// the round-off floor).
     Newton,
@@ -79,6 +83,7 @@ impl SolverKind {
     pub const ALL: &'static [SolverKind] = &[
         SolverKind::Pd,
         SolverKind::PdTol,
+        SolverKind::PdAmg,
         SolverKind::Newton,
         SolverKind::NewtonTol,
         SolverKind::Cg,
@@ -108,6 +113,7 @@ impl SolverKind {
         match self {
             SolverKind::Pd => "pd",
             SolverKind::PdTol => "pd-tol",
+            SolverKind::PdAmg => "pd-amg",
             SolverKind::Newton => "newton",
             SolverKind::NewtonTol => "newton-tol",
             SolverKind::Cg => "cg",
@@ -141,6 +147,7 @@ impl SolverKind {
             SolverKind::PdTol => {
                 "projective dynamics to an estimated distance of T m/s from the solution"
             }
+            SolverKind::PdAmg => "projective dynamics, multilevel global step",
             SolverKind::Newton => "Newton",
             SolverKind::NewtonTol => "Newton to a relative gradient of T",
             SolverKind::Cg => "linearised step, CG",
@@ -181,6 +188,7 @@ impl SolverKind {
     fn values(self) -> Values {
         match self {
             SolverKind::Pd
+            | SolverKind::PdAmg
             | SolverKind::Newton
             | SolverKind::Cg
             | SolverKind::Jacobi
@@ -211,7 +219,7 @@ impl SolverKind {
         let iterations = |v: &[usize]| v.iter().map(|&k| Setting::Iterations(k)).collect();
         let tolerances = |v: &[f64]| v.iter().map(|&t| Setting::Tolerance(t)).collect();
         match self {
-            SolverKind::Pd => iterations(&[1, 2, 5, 10, 20, 50, 100]),
+            SolverKind::Pd | SolverKind::PdAmg => iterations(&[1, 2, 5, 10, 20, 50, 100]),
             SolverKind::PdTol => tolerances(&[1e-2, 1e-3, 1e-4]),
             SolverKind::Newton => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),

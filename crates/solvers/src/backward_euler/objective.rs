@@ -5,7 +5,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use hooke_assembly::{Definiteness, HessianParams};
 use nalgebra::SVector;
 
-use super::{spring_energy_change, BackwardEulerStep};
+use super::{spring_energy_change, BackwardEulerStep, HessianAssembly};
 use crate::{NewtonProblem, Relaxation, RelaxationWork};
 
 impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
@@ -215,7 +215,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
-        self.pattern.symbolic()
+        self.assembly().pattern.symbolic()
     }
 
     fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
@@ -328,8 +328,14 @@ impl<const D: usize> BackwardEulerStep<D> {
             SpringBlocks::Exact => Definiteness::Exact,
             SpringBlocks::Clamped | SpringBlocks::Definite => Definiteness::Clamped,
         };
+        self.assembly();
+        let HessianAssembly {
+            pattern,
+            workspace,
+            values,
+        } = self.assembly.get_mut().expect("made above");
         if blocks == SpringBlocks::Definite {
-            self.projected_springs = self.pattern.definite_scales(
+            self.projected_springs = pattern.definite_scales(
                 &self.springs,
                 &self.x,
                 &self.masses,
@@ -339,18 +345,18 @@ impl<const D: usize> BackwardEulerStep<D> {
                 &mut self.loads,
                 &mut self.scales,
             );
-            self.pattern.assemble_scaled_into(
+            pattern.assemble_scaled_into(
                 &self.springs,
                 &self.x,
                 &self.masses,
                 self.h,
                 &self.scales,
                 self.parallel,
-                &mut self.workspace,
-                &mut self.values,
+                workspace,
+                values,
             );
         } else {
-            self.pattern.assemble_into(
+            pattern.assemble_into(
                 &self.springs,
                 &self.x,
                 &self.masses,
@@ -359,24 +365,24 @@ impl<const D: usize> BackwardEulerStep<D> {
                     definiteness,
                     parallel: self.parallel,
                 },
-                &mut self.workspace,
-                &mut self.values,
+                workspace,
+                values,
             );
         }
         if self.dashpot > 0.0 {
             // ∇²Ψ = h c d dᵀ blocks, directions from the step's start.
-            self.pattern.add_dashpot_into(
+            pattern.add_dashpot_into(
                 &self.springs,
                 &self.dashpot_start,
                 self.dashpot,
                 self.h,
-                &mut self.values,
+                values,
             );
         }
         if let Some(contact) = &self.contact {
             // Per-vertex blocks: the obstacles are static.
             let full = self.counter.is_some();
-            let (pattern, values, free) = (&self.pattern, &mut self.values, &self.free);
+            let free = &self.free;
             contact.for_each_hessian_block(
                 free.free_vertices(),
                 &self.x,
@@ -394,8 +400,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         }
         if let Some(counter) = &self.counter {
             // Pinned rows and columns: m_p I on the diagonal, zero elsewhere.
-            counter.apply_to_matrix(&self.masses, &mut self.values);
+            counter.apply_to_matrix(&self.masses, values);
         }
-        self.pattern.matrix(&self.values)
+        pattern.matrix(values)
     }
 }

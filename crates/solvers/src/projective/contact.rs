@@ -30,9 +30,9 @@ use hooke_assembly::pd::LaplacianPattern;
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
+use super::global::GlobalSolveError;
 use super::GlobalSolve;
 use crate::backward_euler::TIME_OF_IMPACT_SHARE;
-use crate::cholesky::{CholeskyError, SparseCholesky};
 use crate::params::{self, ParamError};
 
 /// The default weight c of an active vertex's contact target, in units of its diagonal entry of
@@ -113,7 +113,7 @@ pub(crate) struct PdContact<const D: usize> {
 impl<const D: usize> PdContact<D> {
     pub(crate) fn new(
         model: PdContactModel<D>,
-        cholesky: SparseCholesky,
+        weighted: GlobalSolve<D>,
         pattern: &LaplacianPattern,
         springs: &[Spring],
         masses: &[f64],
@@ -125,7 +125,7 @@ impl<const D: usize> PdContact<D> {
             diagonal: vec![0.0; n_free],
             weights: vec![0.0; n_free],
             factored: None,
-            weighted: GlobalSolve::new(cholesky),
+            weighted,
             values: pattern.new_values(),
             boosted: masses.to_vec(),
             masses: masses.to_vec(),
@@ -181,7 +181,7 @@ impl<const D: usize> PdContact<D> {
         springs: &[Spring],
         y: &[SVector<f64, D>],
         x: &mut [SVector<f64, D>],
-    ) -> Result<(), CholeskyError> {
+    ) -> Result<(), GlobalSolveError> {
         self.start.copy_from_slice(x);
         let start = &self.start;
         self.active.clear();
@@ -252,6 +252,7 @@ impl<const D: usize> PdContact<D> {
     ) {
         let solution = &mut self.solution;
         if self.active.is_empty() {
+            global.guess(|f| x[free[f] as usize]);
             global.solve(rhs, threads, |f, new| solution[f] = new);
             return;
         }
@@ -268,8 +269,14 @@ impl<const D: usize> PdContact<D> {
             .unwrap_or(x[v]);
             self.rhs[f] += target * self.weights[f];
         }
+        self.weighted.guess(|f| x[free[f] as usize]);
         self.weighted
             .solve(&self.rhs, threads, |f, new| solution[f] = new);
+    }
+
+    /// CG iterations of the last weighted solve (0 on the direct path).
+    pub(crate) fn last_linear_iterations(&self) -> usize {
+        self.weighted.last_iterations()
     }
 
     /// The global step's solution per free vertex.

@@ -415,3 +415,53 @@ fn newton_cg_with_amg_reaches_newtons_solution_on_beam_2() {
     let mesh = generators::beam(2).unwrap();
     newton_cg_with_amg_reaches_newton(&mesh, &clamped(&mesh));
 }
+
+/// D right-hand sides at once: each column's V-cycle is the one-value cycle on that column (to the
+/// rounding of the coarsest solve, whose multi-column triangular solves may sum in another order:
+/// 1e-12 relative, far below the cycle's own contraction), and the column product is the
+/// one-value product bit for bit; on one thread and two the same bits.
+#[test]
+fn columns_are_the_one_value_cycle_on_each_column() {
+    let (a, x) = cloth(20);
+    let modes = Amg::rigid_body_modes(&x);
+    let n = a.nrows();
+    let columns: Vec<Vec<f64>> = (0..3).map(|c| random(n, 20 + c)).collect();
+    let r: Vec<nalgebra::Vector3<f64>> = (0..n)
+        .map(|i| nalgebra::Vector3::new(columns[0][i], columns[1][i], columns[2][i]))
+        .collect();
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut amg = Amg::new(a.as_ref(), 3, &modes, small_coarse()).unwrap();
+                assert!(amg.level_count() >= 3, "{:?}", amg.level_sizes());
+                let mut work = amg.columns_workspace::<3>();
+                let mut z = vec![nalgebra::Vector3::zeros(); n];
+                amg.apply_columns(&mut work, &r, &mut z);
+                let mut product = vec![nalgebra::Vector3::zeros(); n];
+                amg.product_columns(&r, &mut product);
+                (amg, z, product)
+            })
+    };
+    let (mut amg, z, product) = run(1);
+    let (_, z2, product2) = run(2);
+    let bits = |v: &[nalgebra::Vector3<f64>]| -> Vec<u64> {
+        v.iter()
+            .flat_map(|p| p.iter().map(|c| c.to_bits()))
+            .collect()
+    };
+    assert_eq!(bits(&z), bits(&z2));
+    assert_eq!(bits(&product), bits(&product2));
+    for (c, column) in columns.iter().enumerate() {
+        let mut one = vec![0.0; n];
+        amg.apply(column, &mut one);
+        let scale = norm(&one);
+        let apart = (0..n).map(|i| (z[i][c] - one[i]).abs()).fold(0.0, f64::max);
+        assert!(apart <= 1e-12 * scale, "column {c}: {apart:e} of {scale:e}");
+        let mut ax = vec![0.0; n];
+        hooke_solvers::LinearOperator::apply(&amg, column, &mut ax);
+        assert!((0..n).all(|i| product[i][c].to_bits() == ax[i].to_bits()));
+    }
+}

@@ -22,4 +22,5 @@ mod memory_budget;
 mod newton;
 mod newton_cg;
 mod params;
+mod pd_multilevel;
 mod relaxation;

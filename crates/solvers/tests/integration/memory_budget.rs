@@ -7,8 +7,8 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMatRef, Triplet};
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{
-    BackwardEulerStep, CholeskyError, CholeskyParams, Convergence, MemoryBudget, Newton,
-    NewtonError, NewtonParams, NewtonProblem, PdError, PdParams, ProjectiveDynamics,
+    BackwardEulerStep, CholeskyError, CholeskyParams, Convergence, GlobalSolveKind, MemoryBudget,
+    Newton, NewtonError, NewtonParams, NewtonProblem, PdError, PdParams, ProjectiveDynamics,
     SparseCholesky, StopReason,
 };
 use nalgebra::Vector3;
@@ -283,13 +283,15 @@ fn newton_without_a_convexified_hessian_is_refused_over_the_budget() {
     }
 }
 
-/// Projective dynamics has no multilevel path: its prefactored matrix over the budget is refused
-/// with the size needed and the budget.
+/// Projective dynamics' direct path, asked for by name: its prefactored matrix over the budget is
+/// refused with the size needed and the budget (`Auto` takes the multilevel path instead:
+/// tests/integration/pd_multilevel.rs).
 #[test]
-fn projective_dynamics_over_the_budget_is_refused() {
+fn projective_dynamics_direct_over_the_budget_is_refused() {
     let mesh = generators::cloth(12, 1e3).unwrap();
     let free = FreeDofs::new(mesh.vertex_count(), &[0, 11]).unwrap();
     let params = PdParams {
+        global_solve: GlobalSolveKind::Direct,
         cholesky: CholeskyParams {
             memory_budget: MemoryBudget::Bytes(1000),
             ..PdParams::default().cholesky
