@@ -30,9 +30,11 @@ pub enum GlobalSolveKind {
 
 /// The free vertices (unknowns of the scalar global matrix) above which [`GlobalSolveKind::Auto`]
 /// takes the multilevel path. Measured on this project's 2-core machine (docs/solvers.md §6.1):
-/// the multilevel step is faster from cloth-640 (409,600 vertices) on, and needs a fraction of
-/// the factor's memory from cloth-320 on.
-pub const MULTILEVEL_PD_UNKNOWNS: usize = 200_000;
+/// on cloth-160 (25,598) ten PD iterations take about as long on either path, on cloth-320
+/// (102,398) the multilevel path is 1.3–1.5× faster for PD, Chebyshev PD, Anderson PD and L-BFGS,
+/// with a third less memory; the bound sits between, at the direct path's own switch from a
+/// simplicial to a supernodal factor.
+pub const MULTILEVEL_PD_UNKNOWNS: usize = 50_000;
 
 /// Settings of the multilevel global step.
 #[derive(Clone, Copy, Debug, PartialEq)]
