@@ -4,13 +4,13 @@
 //! results are apart (the largest coordinate difference, m) and from the step's start.
 //!
 //! `cargo run --release -p hooke-solvers --example pd_multilevel -- [N=320] [iterations=10]
-//! [tolerance=0.1] [paths=direct,multilevel] [repeats=3]`
+//! [tolerance=0.5] [paths=direct,multilevel] [repeats=3] [smoother parts=default]`
 
 use std::time::Instant;
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
-use hooke_solvers::{GlobalSolveKind, PdMultilevelParams, PdParams, ProjectiveDynamics};
+use hooke_solvers::{AmgParams, GlobalSolveKind, PdMultilevelParams, PdParams, ProjectiveDynamics};
 use nalgebra::Vector3;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -18,9 +18,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or(default.to_string());
     let n: usize = arg(0, "320").parse()?;
     let iterations: usize = arg(1, "10").parse()?;
-    let tolerance: f64 = arg(2, "0.1").parse()?;
+    let tolerance: f64 = arg(2, "0.5").parse()?;
     let paths = arg(3, "direct,multilevel");
     let repeats: usize = arg(4, "3").parse()?;
+    let defaults = PdMultilevelParams::default();
+    let parts: usize = match args.get(5) {
+        Some(p) => p.parse()?,
+        None => defaults.amg.smoother_parts,
+    };
     let mesh = generators::cloth(n, 1e3)?;
     let free = FreeDofs::new(mesh.vertex_count(), &[0, n as u32 - 1])?;
     let h = 1.0 / 30.0;
@@ -43,7 +48,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             global_solve: kind,
             multilevel: PdMultilevelParams {
                 tolerance,
-                ..PdMultilevelParams::default()
+                amg: AmgParams {
+                    smoother_parts: parts,
+                    ..defaults.amg
+                },
+                ..defaults
             },
             ..PdParams::default()
         };

@@ -60,7 +60,9 @@ mod params;
 pub mod projective;
 mod report;
 
-pub use amg::{Amg, AmgColumns, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK};
+pub use amg::{
+    Amg, AmgColumns, AmgError, AmgParams, AmgSmoother, AMG_MAX_BLOCK, AMG_PARTS_MIN_ROWS,
+};
 pub use anderson::{
     AndersonParams, AndersonPd, AndersonReport, ANDERSON_MAX_ITERATIONS, ANDERSON_MAX_WINDOW,
 };
