@@ -31,7 +31,7 @@ pub enum GlobalSolveKind {
 /// The free vertices (unknowns of the scalar global matrix) above which [`GlobalSolveKind::Auto`]
 /// takes the multilevel path. Measured on this project's 2-core machine (docs/solvers.md §6.1):
 /// on cloth-160 (25,598) ten PD iterations take about as long on either path, on cloth-320
-/// (102,398) the multilevel path is 1.3–1.5× faster for PD, Chebyshev PD, Anderson PD and L-BFGS,
+/// (102,398) the multilevel path is 1.5–1.9× faster for PD, Chebyshev PD, Anderson PD and L-BFGS,
 /// with a third less memory; the bound sits between, at the direct path's own switch from a
 /// simplicial to a supernodal factor.
 pub const MULTILEVEL_PD_UNKNOWNS: usize = 50_000;
