@@ -20,3 +20,14 @@ pub fn inertial_target(
         })
         .collect()
 }
+
+/// Run `f` in a rayon pool of `threads` threads (for the tests that compare the bits of one
+/// thread and two).
+#[allow(dead_code)] // Not every test crate that includes this module compares thread counts.
+pub fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a rayon pool")
+        .install(f)
+}

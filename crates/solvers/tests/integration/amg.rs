@@ -10,6 +10,7 @@ use hooke_solvers::{
     SparseCholesky, StopReason, Symmetric,
 };
 
+use crate::common::on_threads;
 use crate::waved_step;
 use waved_step::{clamped, newton_solution, objective_error, step};
 
@@ -227,11 +228,7 @@ fn refresh_equals_a_fresh_set_up_bit_for_bit() {
 fn the_same_bits_on_one_and_two_threads() {
     let (a, x) = cloth(40);
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        on_threads(threads, || {
             let modes = Amg::rigid_body_modes(&x);
             let mut amg = Amg::new(a.as_ref(), 3, &modes, AmgParams::default()).unwrap();
             let b = random(a.nrows(), 11);
@@ -430,20 +427,16 @@ fn columns_are_the_one_value_cycle_on_each_column() {
         .map(|i| nalgebra::Vector3::new(columns[0][i], columns[1][i], columns[2][i]))
         .collect();
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let mut amg = Amg::new(a.as_ref(), 3, &modes, small_coarse()).unwrap();
-                assert!(amg.level_count() >= 3, "{:?}", amg.level_sizes());
-                let mut work = amg.columns_workspace::<3>();
-                let mut z = vec![nalgebra::Vector3::zeros(); n];
-                amg.apply_columns(&mut work, &r, &mut z);
-                let mut product = vec![nalgebra::Vector3::zeros(); n];
-                amg.product_columns(&r, &mut product);
-                (amg, z, product)
-            })
+        on_threads(threads, || {
+            let mut amg = Amg::new(a.as_ref(), 3, &modes, small_coarse()).unwrap();
+            assert!(amg.level_count() >= 3, "{:?}", amg.level_sizes());
+            let mut work = amg.columns_workspace::<3>();
+            let mut z = vec![nalgebra::Vector3::zeros(); n];
+            amg.apply_columns(&mut work, &r, &mut z);
+            let mut product = vec![nalgebra::Vector3::zeros(); n];
+            amg.product_columns(&r, &mut product);
+            (amg, z, product)
+        })
     };
     let (mut amg, z, product) = run(1);
     let (_, z2, product2) = run(2);
@@ -491,18 +484,14 @@ fn sweeps_split_into_parts_stay_symmetric_and_thread_count_free() {
             "{parts} parts: {split} PCG iterations, {plain} with plain sweeps"
         );
         let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| {
-                    let modes = Amg::rigid_body_modes(&x);
-                    let mut amg = Amg::new(a.as_ref(), 3, &modes, params).unwrap();
-                    let b = random(a.nrows(), 13);
-                    let mut z = vec![0.0; b.len()];
-                    amg.apply(&b, &mut z);
-                    z
-                })
+            on_threads(threads, || {
+                let modes = Amg::rigid_body_modes(&x);
+                let mut amg = Amg::new(a.as_ref(), 3, &modes, params).unwrap();
+                let b = random(a.nrows(), 13);
+                let mut z = vec![0.0; b.len()];
+                amg.apply(&b, &mut z);
+                z
+            })
         };
         let (one, two) = (run(1), run(2));
         assert!(one

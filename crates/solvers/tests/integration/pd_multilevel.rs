@@ -12,6 +12,7 @@ use hooke_solvers::{
 };
 
 use crate::chebyshev::{step, Step, V};
+use crate::common::on_threads;
 use crate::waved_step;
 
 const H: f64 = 1.0 / 30.0;
@@ -166,17 +167,13 @@ fn the_same_bits_on_one_and_two_threads() {
     let mesh = generators::cloth(96, 1e3).unwrap();
     let s = step(mesh, &[0, 95], H, 0.05);
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let mut pd = pd(&s.mesh, &[0, 95], PdParams::default_multilevel());
-                let mut x = s.y.clone();
-                let report = pd.solve(s.mesh.springs(), &s.y, &mut x).unwrap();
-                assert!(report.linear_iterations >= 10);
-                x
-            })
+        on_threads(threads, || {
+            let mut pd = pd(&s.mesh, &[0, 95], default_multilevel());
+            let mut x = s.y.clone();
+            let report = pd.solve(s.mesh.springs(), &s.y, &mut x).unwrap();
+            assert!(report.linear_iterations >= 10);
+            x
+        })
     };
     let bits = |x: &[V]| -> Vec<u64> {
         x.iter()
@@ -186,17 +183,11 @@ fn the_same_bits_on_one_and_two_threads() {
     assert_eq!(bits(&run(1)), bits(&run(2)));
 }
 
-trait DefaultMultilevel {
-    fn default_multilevel() -> Self;
-}
-
-impl DefaultMultilevel for PdParams {
-    /// The multilevel path with the default hierarchy (two levels on cloth-96).
-    fn default_multilevel() -> Self {
-        PdParams {
-            global_solve: GlobalSolveKind::Multilevel,
-            ..PdParams::default()
-        }
+/// The multilevel path with the default hierarchy (two levels on cloth-96).
+fn default_multilevel() -> PdParams {
+    PdParams {
+        global_solve: GlobalSolveKind::Multilevel,
+        ..PdParams::default()
     }
 }
 
