@@ -245,6 +245,16 @@ impl SparseCholesky {
             pattern.ncols(),
             "a Cholesky factorisation needs a square matrix"
         );
+        let (symbolic, analysis_time) = Self::symbolic_analysis(pattern, params)?;
+        Self::with_symbolic(symbolic, pattern, params, analysis_time)
+    }
+
+    /// The symbolic analysis of [`SparseCholesky::analyze`] alone (no factor allocated), and its
+    /// time.
+    pub(crate) fn symbolic_analysis(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        params: CholeskyParams,
+    ) -> Result<(Arc<SymbolicCholesky<usize>>, Duration), CholeskyError> {
         params.validate()?;
         let start = Instant::now();
         let threshold = match params.kind {
@@ -262,7 +272,7 @@ impl SparseCholesky {
             },
         )
         .map_err(|e| CholeskyError::Symbolic(format!("{e:?}")))?;
-        Self::with_symbolic(Arc::new(symbolic), pattern, params, start.elapsed())
+        Ok((Arc::new(symbolic), start.elapsed()))
     }
 
     /// Reuse an existing symbolic analysis (shared, e.g. by several solvers on the same pattern),

@@ -84,6 +84,7 @@ pub use newton::{
     Convergence, FactorReuse, IndefinitePolicy, Newton, NewtonError, NewtonIteration, NewtonParams,
     NewtonProblem, NewtonReport, Relaxation, RelaxationWork, DEFAULT_STEP_TOLERANCE,
     MAX_LINE_SEARCH_HALVINGS, MAX_PATCH_COVERS, MAX_RELAXATION_COUNT, MAX_RINGS, MAX_SHIFT_STEPS,
+    MULTILEVEL_FILL,
 };
 pub use newton_cg::{
     NewtonCg, NewtonCgError, NewtonCgParams, NewtonCgReport, NEWTON_CG_MAX_ITERATIONS,

@@ -4,8 +4,10 @@
 //!   ([`crate::CholeskyParams::memory_budget`]); by default half the machine's physical memory. A
 //!   factor above it is refused after the symbolic analysis, before its values are allocated
 //!   ([`CholeskyError::OverBudget`]).
-//! - Newton's linear solver (`LinearSolver`, internal): the sparse Cholesky factor when it fits the budget;
-//!   otherwise the multilevel path ([`MultilevelSolve`]), where each Newton system is solved by
+//! - Newton's linear solver (`LinearSolver`, internal): the sparse Cholesky factor when it fits the
+//!   budget and fills less than [`crate::NewtonParams::multilevel_fill`] times the matrix (a
+//!   solid's factor fills far more than a cloth's); otherwise the multilevel path
+//!   ([`MultilevelSolve`]), where each Newton system is solved by
 //!   conjugate gradients preconditioned with one V-cycle of the smoothed-aggregation [`Amg`],
 //!   whose hierarchy is built on the first Newton matrix of the pattern and refilled
 //!   ([`Amg::refresh`]) for every later one: no symbolic work per matrix, and memory of the order
@@ -29,7 +31,7 @@
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 
 use crate::amg::{Amg, AmgError, AmgParams};
 use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
@@ -202,9 +204,13 @@ pub struct MultilevelStats {
 #[derive(Debug)]
 pub struct MultilevelSolve {
     dim: usize,
-    /// Bytes the Cholesky factor would have needed, and the budget it exceeded.
+    /// Bytes the Cholesky factor would have needed, and the budget (which it exceeded, unless
+    /// the path was taken for the factor's fill).
     needed: u64,
     budget: u64,
+    /// The matrix' pattern, kept when the path was taken for the factor's fill (the factor fits
+    /// the budget): the direct path's analysis for a problem the multilevel path cannot solve.
+    fallback: Option<SymbolicSparseColMat<usize>>,
     /// Block size and near-nullspace of the hierarchy's set-up (dropped once it is built).
     block: usize,
     near_nullspace: Vec<f64>,
@@ -230,6 +236,7 @@ impl MultilevelSolve {
             dim,
             needed,
             budget,
+            fallback: None,
             block: 1,
             near_nullspace: Vec::new(),
             amg: None,
@@ -251,9 +258,17 @@ impl MultilevelSolve {
         self.needed
     }
 
-    /// The budget (bytes) that the factor exceeded.
+    /// The memory budget (bytes), which the factor exceeded unless the path was taken for its
+    /// fill ([`MultilevelSolve::for_fill`]).
     pub fn budget(&self) -> u64 {
         self.budget
+    }
+
+    /// Whether the path was taken because the factor would fill more than
+    /// [`crate::NewtonParams::multilevel_fill`] times the matrix while it fits the budget,
+    /// rather than because it exceeds the budget.
+    pub fn for_fill(&self) -> bool {
+        self.fallback.is_some()
     }
 
     /// What it did so far.
@@ -470,8 +485,8 @@ pub(crate) enum LinearSolver {
 }
 
 impl LinearSolver {
-    /// Analyse `pattern`: a Cholesky factor if it fits `params.memory_budget`, the multilevel
-    /// solve otherwise.
+    /// Analyse `pattern`: a Cholesky factor if it fits `params.memory_budget` and holds at most
+    /// `fill_limit` times the pattern's stored entries, the multilevel solve otherwise.
     ///
     /// # Errors
     /// [`SparseCholesky::analyze`]'s errors other than [`CholeskyError::OverBudget`].
@@ -479,8 +494,23 @@ impl LinearSolver {
     pub(crate) fn analyze(
         pattern: SymbolicSparseColMatRef<'_, usize>,
         params: CholeskyParams,
+        fill_limit: f64,
     ) -> Result<Self, CholeskyError> {
-        match SparseCholesky::analyze(pattern, params) {
+        let (symbolic, analysis_time) = SparseCholesky::symbolic_analysis(pattern, params)?;
+        let fill = symbolic.len_val() as f64 / pattern.compute_nnz().max(1) as f64;
+        if fill > fill_limit {
+            // Decided before the factor is allocated.
+            let (needed, _) = SparseCholesky::memory_needed(&symbolic, params);
+            let budget = params.memory_budget.bytes();
+            let mut multilevel = MultilevelSolve::new(pattern.nrows(), needed, budget);
+            if needed <= budget {
+                multilevel.fallback = Some(pattern.to_owned().map_err(|_| {
+                    CholeskyError::Multilevel("the pattern could not be copied".to_string())
+                })?);
+            }
+            return Ok(LinearSolver::Multilevel(Box::new(multilevel)));
+        }
+        match SparseCholesky::with_symbolic(symbolic, pattern, params, analysis_time) {
             Ok(cholesky) => Ok(LinearSolver::Direct(cholesky)),
             Err(CholeskyError::OverBudget {
                 dim,
@@ -491,6 +521,23 @@ impl LinearSolver {
             )))),
             Err(e) => Err(e),
         }
+    }
+
+    /// On the multilevel path taken for the factor's fill, analyse the kept pattern for the
+    /// direct path (the factor fits the budget); otherwise nothing.
+    ///
+    /// # Errors
+    /// [`SparseCholesky::analyze`]'s.
+    pub(crate) fn fall_back_to_direct(
+        &mut self,
+        params: CholeskyParams,
+    ) -> Result<(), CholeskyError> {
+        if let LinearSolver::Multilevel(m) = self {
+            if let Some(pattern) = &m.fallback {
+                *self = LinearSolver::Direct(SparseCholesky::analyze(pattern.as_ref(), params)?);
+            }
+        }
+        Ok(())
     }
 
     /// The multilevel solve, if this is one.

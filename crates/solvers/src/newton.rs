@@ -530,7 +530,21 @@ pub struct NewtonParams {
     /// Solving a Newton system by CG preconditioned with the factor held from an earlier
     /// iteration, before factoring it. Default [`FactorReuse::DEFAULT`].
     pub factor_reuse: FactorReuse,
+    /// Take the multilevel path (docs/solvers.md §2.5) when the Cholesky factor would hold more
+    /// than this many times the matrix' stored entries (the factor's lower triangle against the
+    /// matrix' full pattern), decided after the symbolic analysis, before the factor is
+    /// allocated; even within the memory budget, if the problem has a convexified Hessian (for
+    /// one without, the factor is used). Default [`MULTILEVEL_FILL`]; `f64::INFINITY`: only above
+    /// the memory budget.
+    pub multilevel_fill: f64,
 }
+
+/// The default [`NewtonParams::multilevel_fill`]: 20. Measured on this project's 2-core machine
+/// (docs/solvers.md §2.5): a solid's factor fills far more than a cloth's, and the multilevel
+/// path is the faster one from a fill of about 20 on (the dropped cube filled at 0.067 m, fill
+/// 25: 3×; at 0.05 m, fill 38: 8×), the direct one below it (bunny-drop, fill 11: 1.7×;
+/// cloth-40 and cloth-80, fill 4–5: 3×).
+pub const MULTILEVEL_FILL: f64 = 20.0;
 
 /// Solving a Newton system H Δ = −∇Φ by conjugate gradients preconditioned with the factor held
 /// from an earlier Newton matrix (of this solve or of an earlier one on the same pattern), instead
@@ -763,6 +777,12 @@ impl NewtonParams {
         }
         self.relaxation.validate()?;
         self.factor_reuse.validate()?;
+        params::real(
+            "NewtonParams::multilevel_fill",
+            self.multilevel_fill,
+            self.multilevel_fill > 0.0,
+            "positive (+∞: only above the memory budget)",
+        )?;
         self.cholesky.validate()
     }
 }
@@ -783,6 +803,7 @@ impl Default for NewtonParams {
             relaxation: Relaxation::NONE,
             cholesky: CholeskyParams::default(),
             factor_reuse: FactorReuse::DEFAULT,
+            multilevel_fill: MULTILEVEL_FILL,
         }
     }
 }
@@ -1011,7 +1032,8 @@ impl Failure {
 pub struct Newton {
     /// The settings.
     pub params: NewtonParams,
-    /// The Cholesky factor, or above the memory budget the multilevel solve (docs/solvers.md §2.5).
+    /// The Cholesky factor, or above the memory budget or the fill bound the multilevel solve
+    /// (docs/solvers.md §2.5).
     cholesky: LinearSolver,
     diagonal_slots: Vec<usize>,
     hessian: Vec<f64>,
@@ -1052,8 +1074,10 @@ struct Accepted {
 
 impl Newton {
     /// Analyse the problem's Hessian pattern once. A Cholesky factor above
-    /// [`CholeskyParams::memory_budget`] is not allocated: the Newton systems are then solved on
-    /// the multilevel path ([`Newton::multilevel`], docs/solvers.md §2.5).
+    /// [`CholeskyParams::memory_budget`], or filling more than [`NewtonParams::multilevel_fill`]
+    /// times the matrix, is not allocated: the Newton systems are then solved on the multilevel
+    /// path ([`Newton::multilevel`], docs/solvers.md §2.5; for the fill, only for a problem with a
+    /// convexified Hessian: another falls back to the factor at its first solve).
     ///
     /// # Errors
     /// [`NewtonError::InvalidParameter`] if `params` does not pass [`NewtonParams::validate`];
@@ -1081,7 +1105,7 @@ impl Newton {
             .collect();
         let nnz = pattern.compute_nnz();
         Ok(Newton {
-            cholesky: LinearSolver::analyze(pattern, params.cholesky)?,
+            cholesky: LinearSolver::analyze(pattern, params.cholesky, params.multilevel_fill)?,
             diagonal_slots,
             hessian: vec![0.0; nnz],
             shifted: vec![0.0; nnz],
@@ -1103,7 +1127,8 @@ impl Newton {
     }
 
     /// The multilevel solve standing in for a Cholesky factor above the memory budget
-    /// ([`CholeskyParams::memory_budget`], docs/solvers.md §2.5); `None` on the direct path.
+    /// ([`CholeskyParams::memory_budget`]) or the fill bound ([`NewtonParams::multilevel_fill`];
+    /// docs/solvers.md §2.5); `None` on the direct path.
     pub fn multilevel(&self) -> Option<&MultilevelSolve> {
         self.cholesky.multilevel()
     }
@@ -1434,6 +1459,13 @@ impl Newton {
         x: &mut [f64],
         report: &mut NewtonReport,
     ) -> Result<(), Failure> {
+        if !problem.has_convexified_hessian() {
+            // Chosen for its fill, the multilevel path gives way to the factor (which fits the
+            // budget) for a problem it cannot solve.
+            self.cholesky
+                .fall_back_to_direct(self.params.cholesky)
+                .map_err(Failure::Factorization)?;
+        }
         if let Some(multilevel) = self.cholesky.multilevel_mut() {
             // The multilevel path gives no inertia: it blends towards the convexified Hessian
             // where CG meets negative curvature (docs/solvers.md §2.5).

@@ -281,6 +281,60 @@ fn newton_without_a_convexified_hessian_is_refused_over_the_budget() {
     ] {
         assert!(message.contains(part), "{part:?} not in {message:?}");
     }
+    // Within the budget, a fill limit the factor exceeds takes the multilevel path; for this
+    // problem, which it cannot solve, Newton falls back to the factor, to the same answer.
+    let mut newton = Newton::new(
+        problem.pattern(),
+        NewtonParams {
+            multilevel_fill: 0.1,
+            ..NewtonParams::default()
+        },
+    )
+    .unwrap();
+    assert!(newton.multilevel().is_some_and(|m| m.for_fill()));
+    let mut y = vec![0.0; 30];
+    newton.minimize(&mut problem, &mut y).unwrap();
+    assert!(newton.multilevel().is_none(), "fell back to the factor");
+    let solved = {
+        let mut x = vec![0.0; 30];
+        direct.minimize(&mut problem, &mut x).unwrap();
+        x
+    };
+    assert_eq!(solved, y);
+}
+
+/// A factor that fills more than `NewtonParams::multilevel_fill` times the matrix takes the
+/// multilevel path within the budget (the path a solid's factor takes by default), to the direct
+/// path's answers on the squashed beam; the default keeps the beam (fill 2.7) on the factor.
+#[test]
+fn a_factor_that_fills_too_much_takes_the_multilevel_path_within_the_budget() {
+    let mut beam = Beam::new();
+    let mut direct =
+        Newton::new(beam.step.pattern(), newton_params(MemoryBudget::Machine)).unwrap();
+    assert!(direct.multilevel().is_none());
+    let mut filled = Newton::new(
+        beam.step.pattern(),
+        NewtonParams {
+            multilevel_fill: 1.0,
+            ..newton_params(MemoryBudget::Machine)
+        },
+    )
+    .unwrap();
+    let path = filled.multilevel().expect("the fill is above 1");
+    assert!(path.for_fill() && path.factor_bytes() <= path.budget());
+    for k in 0..2 {
+        let (reference, _) = beam.solve(&mut direct);
+        let (answer, _) = beam.solve(&mut filled);
+        // As for the budget's multilevel path (the test above): 1e-7 of the motion.
+        let motion = largest_difference(&reference, &beam.x);
+        let difference = largest_difference(&reference, &answer);
+        assert!(
+            difference <= 1e-7 * motion,
+            "step {k}: {difference:e} of {motion:e} m"
+        );
+        beam.advance(&reference);
+    }
+    assert!(filled.multilevel().is_some_and(|m| m.stats().solves >= 2));
 }
 
 /// Projective dynamics' direct path, asked for by name: its prefactored matrix over the budget is

@@ -93,12 +93,13 @@ fn set_newton_real(p: &mut NewtonParams, field: usize, value: f64) -> &'static s
             &mut r.region_concentration,
             "Relaxation::region_concentration",
         ),
-        _ => (&mut r.region_tolerance, "Relaxation::region_tolerance"),
+        12 => (&mut r.region_tolerance, "Relaxation::region_tolerance"),
+        _ => (&mut p.multilevel_fill, "NewtonParams::multilevel_fill"),
     };
     *slot = value;
     name
 }
-const NEWTON_REALS: usize = 13;
+const NEWTON_REALS: usize = 14;
 
 /// Set the `field`-th count of Newton's settings (relaxation and factorisation included).
 fn set_newton_count(p: &mut NewtonParams, field: usize, value: usize) -> &'static str {
