@@ -885,7 +885,7 @@ impl Amg {
         }
     }
 
-    /// One V-cycle for each of D right-hand sides at once: z[·][a] ≈ A⁻¹ r[·][a] for every column
+    /// One V-cycle for each of D right-hand sides at once: z_a ≈ A⁻¹ r_a for every column
     /// a (entry i of `r` holds unknown i of the D right-hand sides), with each level's matrix read
     /// once for all D. Column a's values are those of [`Preconditioner::apply`] on column a, but
     /// for the coarsest solve's rounding (faer's multi-column triangular solves). Allocates
