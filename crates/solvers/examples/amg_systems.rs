@@ -5,7 +5,7 @@
 //! refresh and solve times, the PCG iterations to the tolerance and the true relative residual
 //! (benches/results/amg.md).
 //!
-//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1] [symmetric|gs] [power iterations]`
+//! `cargo run -p hooke-solvers --example amg_systems -- DIR [tolerance=1e-6] [sweeps=1] [symmetric|gs] [power iterations] [smoother parts]`
 //! (RAYON_NUM_THREADS=1 for one thread).
 
 use std::path::Path;
@@ -134,6 +134,11 @@ fn main() {
             .get(4)
             .map_or(AmgParams::default().spectral_radius_iterations, |s| {
                 s.parse().expect("power iterations")
+            }),
+        smoother_parts: args
+            .get(5)
+            .map_or(AmgParams::default().smoother_parts, |s| {
+                s.parse().expect("smoother parts")
             }),
         ..AmgParams::default()
     };
