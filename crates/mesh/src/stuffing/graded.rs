@@ -49,9 +49,9 @@ use rayon::prelude::*;
 
 use super::lattice::BccLattice;
 use super::{
-    add_all_zero, assemble, edge_key, final_position, quality_report, reference_position, stencils,
-    warp, within_bounds, Broken, ClosedSurface, Cut, Stuffed, Stuffing, StuffingError,
-    StuffingOptions, ALPHA, MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG, PADDING,
+    edge_key, final_position, finish, reference_position, stencils, warp, within_bounds, Broken,
+    ClosedSurface, Cut, Stuffed, Stuffing, StuffingError, StuffingOptions, ALPHA,
+    MAX_DIHEDRAL_BOUND_DEG, MIN_DIHEDRAL_BOUND_DEG, PADDING,
 };
 use crate::{tetrahedron_signed_volume, Vec3};
 
@@ -363,25 +363,14 @@ pub fn tetrahedralize_graded(
     } = filled;
     tetrahedra.extend(transition);
     // As in the uniform mesher: all-zero tetrahedra are a free choice within the bounds.
-    add_all_zero(
-        &mut tetrahedra,
+    finish(
+        tetrahedra,
         all_zero,
         (&lattice, &cuts, &warped, &signs),
         surface,
         h,
-    )?;
-    let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
-    let mesh = assemble(
-        &tetrahedra,
-        lattice.vertex_count() + cuts.len(),
-        position,
-        h,
-    )?;
-    let seconds = start.elapsed().as_secs_f64();
-    let mut report = quality_report(&mesh, None);
-    report.surface_volume = Some(surface.enclosed_volume());
-    report.seconds = seconds;
-    Ok(Stuffed { mesh, report })
+        start,
+    )
 }
 
 /// The leaves to split so that no transition tetrahedron kept whole with a warped vertex falls

@@ -284,15 +284,35 @@ pub fn tetrahedralize(
         reference_position(&lattice, &cuts, id)
     })
     .map_err(|b| b.at(h))?;
-    let mut tetrahedra = stenciled;
-    add_all_zero(
-        &mut tetrahedra,
+    finish(
+        stenciled,
         all_zero,
         (&lattice, &cuts, &warped, &signs),
         surface,
         h,
+        start,
+    )
+}
+
+/// The last stage of both fills (uniform and graded): the all-zero tetrahedra added within the
+/// bounds ([`add_all_zero`]), every vertex at its final position, the mesh assembled, and its
+/// quality report with the surface's volume and the time since `start`.
+pub(crate) fn finish(
+    mut tetrahedra: Vec<[u32; 4]>,
+    all_zero: Vec<[u32; 4]>,
+    (lattice, cuts, warped, signs): (&BccLattice, &[Cut], &HashMap<u32, Vec3>, &[i8]),
+    surface: &ClosedSurface,
+    h: f64,
+    start: Instant,
+) -> Result<Stuffed, StuffingError> {
+    add_all_zero(
+        &mut tetrahedra,
+        all_zero,
+        (lattice, cuts, warped, signs),
+        surface,
+        h,
     )?;
-    let position = |id: u32| final_position(&lattice, &cuts, &warped, id);
+    let position = |id: u32| final_position(lattice, cuts, warped, id);
     let mesh = assemble(
         &tetrahedra,
         lattice.vertex_count() + cuts.len(),
