@@ -16,7 +16,7 @@ use crate::sim::{
     parse_energy_limit, Integrator, LinearSolver, PinMethod, RelaxationPreset, SimError,
     Simulation, SolverOptions,
 };
-use crate::solvers::MemoryBudget;
+use crate::solvers::{GlobalSolveKind, MemoryBudget};
 use crate::test_hook::Halt;
 use clap::{Parser, Subcommand, ValueEnum};
 
@@ -130,6 +130,13 @@ pub(crate) struct RunArgs {
     #[arg(long, value_name = "BYTES|machine|unlimited")]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     memory_budget: Option<String>,
+    /// How pd, pd-chebyshev, lbfgs and newton-cg solve with the PD matrix: direct (its Cholesky
+    /// factor), multilevel (CG with a multigrid V-cycle, no factor) or auto (multilevel above
+    /// 50,000 free vertices or the memory budget; docs/solvers.md §6.1). Default: the scene
+    /// file's, else auto.
+    #[arg(long, value_name = "auto|direct|multilevel")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pd_global_solve: Option<String>,
     /// Number of frames to run (default: the scene's; fluid scenes: 50 to t = 1 s for the dam
     /// breaks, 40 to 2 s for hydrostatic-2d).
     #[arg(long)]
@@ -184,7 +191,7 @@ pub(crate) struct RunArgs {
     /// frame), leaving what a run started with --steps N leaves.
     #[arg(long, value_name = "DIR", conflicts_with_all = [
         "scene", "integrator", "beta", "linear_solver", "iterations", "tolerance", "relaxation",
-        "factor_reuse", "memory_budget",
+        "factor_reuse", "memory_budget", "pd_global_solve",
         "dx", "dt",
         "substeps", "force", "energy_limit", "pin_method", "out", "format", "checkpoint_every",
     ])]
@@ -216,6 +223,7 @@ impl RunArgs {
             relaxation: self.relaxation.clone(),
             factor_reuse: self.factor_reuse,
             memory_budget: self.memory_budget.clone(),
+            pd_global_solve: self.pd_global_solve.clone(),
             steps: self.steps,
             dx: self.dx,
             dt: self.dt,
@@ -388,6 +396,7 @@ fn run_setup<const D: usize>(
     }
     let linear_solver = parse_flag::<LinearSolver>(&args.linear_solver, "linear-solver")?;
     let relaxation = parse_flag::<RelaxationPreset>(&args.relaxation, "relaxation")?;
+    let pd_global_solve = parse_flag::<GlobalSolveKind>(&args.pd_global_solve, "pd-global-solve")?;
     let memory_budget = match &args.memory_budget {
         Some(text) => Some(
             MemoryBudget::parse(text).map_err(|reason| CliError::Argument {
@@ -445,6 +454,13 @@ fn run_setup<const D: usize>(
             "memory-budget",
             SolverOptions {
                 memory_budget,
+                ..SolverOptions::default()
+            },
+        ),
+        (
+            "pd-global-solve",
+            SolverOptions {
+                pd_global_solve,
                 ..SolverOptions::default()
             },
         ),
@@ -603,6 +619,7 @@ fn run_setup<const D: usize>(
                 relaxation: o.relaxation.map(|r| r.name().to_string()),
                 factor_reuse: o.factor_reuse,
                 memory_budget: o.memory_budget.map(MemoryBudget::bytes),
+                pd_global_solve: o.pd_global_solve.map(|k| k.name().to_string()),
             })
         },
         pin_method: Some(settings.pins.name().into()),
@@ -842,6 +859,7 @@ fn run_fluid(args: &RunArgs) -> Result<(), CliError> {
         ("relaxation", args.relaxation.is_some()),
         ("factor-reuse", args.factor_reuse.is_some()),
         ("memory-budget", args.memory_budget.is_some()),
+        ("pd-global-solve", args.pd_global_solve.is_some()),
         ("substeps", args.substeps.is_some()),
         ("force", args.force),
         ("energy-limit", args.energy_limit.is_some()),

@@ -69,6 +69,7 @@
 //! # relaxation = "none"    # newton: or "buckling" (sweeps and fold elimination between steps)
 //! # factor_reuse = 4       # newton: CG iterations on an earlier matrix's factor before factoring; 0: off
 //! # memory_budget = "4G"   # newton, pd, pd-chebyshev, lbfgs, newton-cg: the most a Cholesky factor may take ("machine": half the RAM; "unlimited"; or bytes)
+//! # pd_global_solve = "auto"  # pd, pd-chebyshev, lbfgs, newton-cg: "direct" (the factor), "multilevel" (CG with AMG), "auto" (multilevel above 50,000 free vertices or the budget)
 //!
 //! [run]
 //! steps = 30
@@ -97,7 +98,7 @@ use std::path::{Path, PathBuf};
 
 use hooke_mesh::io::{read_mesh, Mesh};
 use hooke_mesh::{generators, Bending, MassModel, SpringMesh};
-use hooke_solvers::MemoryBudget;
+use hooke_solvers::{GlobalSolveKind, MemoryBudget};
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
@@ -381,6 +382,7 @@ struct IntegratorSection {
     relaxation: Option<String>,
     factor_reuse: Option<usize>,
     memory_budget: Option<MemoryBudgetValue>,
+    pd_global_solve: Option<String>,
 }
 
 /// `integrator.memory_budget`: a size in bytes, or text ("4G", "machine", "unlimited").
@@ -1081,6 +1083,13 @@ impl Context<'_> {
             ),
             None => None,
         };
+        let pd_global_solve = match &i.pd_global_solve {
+            Some(name) => Some(
+                name.parse::<GlobalSolveKind>()
+                    .map_err(|e| self.invalid("integrator.pd_global_solve", e))?,
+            ),
+            None => None,
+        };
         // One option at a time, so that an error names its key.
         for (key, options) in [
             (
@@ -1129,6 +1138,13 @@ impl Context<'_> {
                 "integrator.memory_budget",
                 SolverOptions {
                     memory_budget,
+                    ..SolverOptions::default()
+                },
+            ),
+            (
+                "integrator.pd_global_solve",
+                SolverOptions {
+                    pd_global_solve,
                     ..SolverOptions::default()
                 },
             ),
@@ -1279,6 +1295,7 @@ tolerance = 1e-9
                 relaxation: None,
                 factor_reuse: None,
                 memory_budget: None,
+                pd_global_solve: None,
             })
             .unwrap();
         assert_eq!(setup.settings, expected);
@@ -1372,6 +1389,37 @@ tolerance = 1e-9
             let err = parse(method, line).unwrap_err().to_string();
             assert!(
                 err.contains("integrator.memory_budget") && err.contains(expected),
+                "{err}"
+            );
+        }
+    }
+
+    /// `pd_global_solve` sets how the PD-based integrators solve with their matrix; bad text and
+    /// an integrator without a PD matrix are refused, naming the key.
+    #[test]
+    fn pd_global_solve_key_reaches_the_pd_matrix() {
+        let parse = |method: &str, line: &str| {
+            parse(&format!(
+                "[integrator]\nmethod = \"{method}\"\ntime_step = 0.01\n{line}"
+            ))
+        };
+        let default = parse("pd", "").unwrap();
+        assert_eq!(default.settings.pd.global_solve, GlobalSolveKind::Auto);
+        for method in ["pd", "pd-chebyshev", "lbfgs", "newton-cg"] {
+            let set = parse(method, "pd_global_solve = \"multilevel\"\n").unwrap();
+            assert_eq!(set.settings.pd.global_solve, GlobalSolveKind::Multilevel);
+            assert_eq!(
+                set.settings.solver_options().pd_global_solve,
+                Some(GlobalSolveKind::Multilevel)
+            );
+        }
+        for (method, line, expected) in [
+            ("pd", "pd_global_solve = \"fast\"\n", "not a global solve"),
+            ("newton", "pd_global_solve = \"direct\"\n", "pd-chebyshev"),
+        ] {
+            let err = parse(method, line).unwrap_err().to_string();
+            assert!(
+                err.contains("integrator.pd_global_solve") && err.contains(expected),
                 "{err}"
             );
         }

@@ -574,9 +574,13 @@ pub struct SolverOptions {
     pub factor_reuse: Option<usize>,
     /// The memory a sparse Cholesky factor may take ([`hooke_solvers::CholeskyParams::memory_budget`],
     /// docs/solvers.md §2.5): Newton's (above it Newton takes the multilevel path) and the PD
-    /// matrix's of pd, pd-chebyshev, lbfgs and newton-cg (above it they are refused with the
-    /// size needed). Implicit integrators that factor a matrix only.
+    /// matrix's of pd, pd-chebyshev, lbfgs and newton-cg (above it, under the automatic global
+    /// solve, their multilevel global step, docs/solvers.md §6.1). Implicit integrators that
+    /// factor a matrix only.
     pub memory_budget: Option<hooke_solvers::MemoryBudget>,
+    /// How the PD matrix is solved ([`hooke_solvers::PdParams::global_solve`], docs/solvers.md
+    /// §6.1): pd, pd-chebyshev, lbfgs and newton-cg only.
+    pub pd_global_solve: Option<hooke_solvers::GlobalSolveKind>,
 }
 
 impl Settings {
@@ -731,6 +735,24 @@ impl Settings {
                 }
             }
         }
+        if let Some(kind) = options.pd_global_solve {
+            match integrator {
+                Integrator::ProjectiveDynamics
+                | Integrator::Lbfgs
+                | Integrator::NewtonCg
+                | Integrator::ChebyshevPd => self.pd.global_solve = kind,
+                _ => {
+                    return Err(SimError::invalid(
+                        "PD global solve",
+                        kind,
+                        format!(
+                            "applies to the integrators that solve with the PD matrix: pd, \
+                             pd-chebyshev, lbfgs and newton-cg (this run uses {integrator})"
+                        ),
+                    ))
+                }
+            }
+        }
         if let Some(tolerance) = options.tolerance {
             match integrator {
                 Integrator::Linearized => self.linearized.tolerance = tolerance,
@@ -771,6 +793,7 @@ impl Settings {
                 relaxation: None,
                 factor_reuse: None,
                 memory_budget: None,
+                pd_global_solve: None,
             },
             Integrator::Newton => SolverOptions {
                 iterations: Some(self.newton.max_iterations),
@@ -784,24 +807,28 @@ impl Settings {
                 iterations: Some(self.pd.max_iterations),
                 tolerance: Some(self.pd.tolerance),
                 memory_budget: Some(self.pd.cholesky.memory_budget),
+                pd_global_solve: Some(self.pd.global_solve),
                 ..SolverOptions::default()
             },
             Integrator::Lbfgs => SolverOptions {
                 iterations: Some(self.lbfgs.max_iterations),
                 tolerance: Some(self.lbfgs.tolerance),
                 memory_budget: Some(self.pd.cholesky.memory_budget),
+                pd_global_solve: Some(self.pd.global_solve),
                 ..SolverOptions::default()
             },
             Integrator::NewtonCg => SolverOptions {
                 iterations: Some(self.newton_cg.max_iterations),
                 tolerance: Some(self.newton_cg.tolerance),
                 memory_budget: Some(self.pd.cholesky.memory_budget),
+                pd_global_solve: Some(self.pd.global_solve),
                 ..SolverOptions::default()
             },
             Integrator::ChebyshevPd => SolverOptions {
                 iterations: Some(self.chebyshev.max_iterations),
                 tolerance: Some(self.chebyshev.tolerance),
                 memory_budget: Some(self.pd.cholesky.memory_budget),
+                pd_global_solve: Some(self.pd.global_solve),
                 ..SolverOptions::default()
             },
             _ => SolverOptions::default(),
@@ -912,6 +939,7 @@ mod tests {
             relaxation: None,
             factor_reuse: None,
             memory_budget: None,
+            pd_global_solve: None,
         })
         .unwrap();
         assert_eq!(s.linearized.beta, 0.5);

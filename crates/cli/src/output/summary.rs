@@ -90,6 +90,10 @@ pub struct SolverSettingsRecord {
     /// factor nothing and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory_budget: Option<u64>,
+    /// How the PD matrix is solved: `auto`, `direct` or `multilevel` (pd, pd-chebyshev, lbfgs and
+    /// newton-cg; absent for other integrators and in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pd_global_solve: Option<String>,
 }
 
 /// What a step's `solver_residual` measures: Newton's relative gradient (unit `1`), projective

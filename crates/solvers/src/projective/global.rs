@@ -28,6 +28,42 @@ pub enum GlobalSolveKind {
     Multilevel,
 }
 
+impl GlobalSolveKind {
+    /// Every kind, in the order of their names' list.
+    pub const ALL: [GlobalSolveKind; 3] = [
+        GlobalSolveKind::Auto,
+        GlobalSolveKind::Direct,
+        GlobalSolveKind::Multilevel,
+    ];
+
+    /// The name in a scene file and on the command line: `auto`, `direct` or `multilevel`.
+    pub fn name(self) -> &'static str {
+        match self {
+            GlobalSolveKind::Auto => "auto",
+            GlobalSolveKind::Direct => "direct",
+            GlobalSolveKind::Multilevel => "multilevel",
+        }
+    }
+}
+
+impl std::fmt::Display for GlobalSolveKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for GlobalSolveKind {
+    type Err = String;
+
+    /// One of the names of [`GlobalSolveKind::name`].
+    fn from_str(text: &str) -> Result<Self, String> {
+        GlobalSolveKind::ALL
+            .into_iter()
+            .find(|k| k.name() == text)
+            .ok_or_else(|| format!("{text:?} is not a global solve: auto, direct or multilevel"))
+    }
+}
+
 /// The free vertices (unknowns of the scalar global matrix) above which [`GlobalSolveKind::Auto`]
 /// takes the multilevel path. Measured on this project's 2-core machine (docs/solvers.md §6.1):
 /// on cloth-160 (25,598) ten PD iterations take about as long on either path, on cloth-320
