@@ -352,3 +352,81 @@ fn contact_on_the_multilevel_path_keeps_every_vertex_outside() {
     eprintln!("largest move {moved:e} m, paths apart {apart:e} m");
     assert!(apart <= 0.1 * moved, "{apart:e} m apart, {moved:e} m moved");
 }
+
+/// In 2D (two coordinates in lockstep): a 30 × 30 sheet of springs pinned at two corners lands
+/// where the direct path lands (Φ within 1 % of the direct decrease, as in 3D), and Φ never rises.
+#[test]
+fn two_dimensions_land_where_the_direct_path_does() {
+    use hooke_mesh::SpringMesh;
+    use nalgebra::Vector2;
+    let n = 30;
+    let spacing = 1.0 / (n - 1) as f64;
+    let positions: Vec<Vector2<f64>> = (0..n * n)
+        .map(|v| Vector2::new((v % n) as f64, (v / n) as f64) * spacing)
+        .collect();
+    let mut pairs = Vec::new();
+    for r in 0..n {
+        for c in 0..n {
+            let v = (r * n + c) as u32;
+            if c + 1 < n {
+                pairs.push([v, v + 1]);
+            }
+            if r + 1 < n {
+                pairs.push([v, v + n as u32]);
+            }
+            if c + 1 < n && r + 1 < n {
+                pairs.push([v, v + n as u32 + 1]);
+            }
+        }
+    }
+    let mesh = SpringMesh::<2>::from_pairs(
+        positions.clone(),
+        vec![1.0 / (n * n) as f64; n * n],
+        &pairs,
+        1e3,
+    )
+    .unwrap();
+    let pinned = [(n * n - n) as u32, (n * n - 1) as u32];
+    let free = FreeDofs::new(mesh.vertex_count(), &pinned).unwrap();
+    let y: Vec<Vector2<f64>> = positions
+        .iter()
+        .enumerate()
+        .map(|(v, p)| {
+            if pinned.contains(&(v as u32)) {
+                *p
+            } else {
+                p + Vector2::new(0.02 * p.y, -9.81 * H * H)
+            }
+        })
+        .collect();
+    let run = |params: PdParams| {
+        let mut pd =
+            ProjectiveDynamics::<2>::new(mesh.springs(), mesh.masses(), &free, H, params).unwrap();
+        let mut x = y.clone();
+        let report = pd.solve(mesh.springs(), &y, &mut x).unwrap();
+        (x, report, pd)
+    };
+    let steps = |params: PdParams| PdParams {
+        max_iterations: 30,
+        record_objective: true,
+        ..params
+    };
+    let (direct, _, pd) = run(steps(PdParams::default()));
+    let (cycled, report, _) = run(steps(multilevel()));
+    assert!(report.linear_iterations >= 30);
+    for w in report.objectives.windows(2) {
+        assert!(
+            w[1] <= w[0] + 8.0 * f64::EPSILON * w[0].abs(),
+            "Φ rose: {w:?}"
+        );
+    }
+    let springs = mesh.springs();
+    let gap = pd.objective_change(springs, &y, &direct, &cycled);
+    let decrease = -pd.objective_change(springs, &y, &y, &direct);
+    eprintln!(
+        "2D: Φ(multilevel) − Φ(direct) = {:e} of the decrease",
+        gap / decrease
+    );
+    assert!(decrease > 0.0);
+    assert!(gap.abs() <= 0.01 * decrease, "{gap:e} of {decrease:e}");
+}
