@@ -372,7 +372,8 @@ impl<const D: usize> ProjectiveDynamics<D> {
     /// was set to values [`PdParams::validate`] refuses.
     ///
     /// # Panics
-    /// If the lengths of `springs`, `y` or `x` do not match the system.
+    /// If the lengths of `springs`, `y` or `x` do not match the system, or after a
+    /// [`ProjectiveDynamics::refactor`] that failed (no factor or hierarchy to solve with).
     #[track_caller]
     pub fn solve(
         &mut self,

@@ -192,7 +192,7 @@ impl<const D: usize> GlobalSolve<D> {
             GlobalSolve::Multilevel(m) => {
                 let MultilevelSolve { amg, work, z, .. } = &mut **m;
                 let (Some(amg), Some(work)) = (amg, work) else {
-                    unreachable!("a successful preparation precedes every solve")
+                    panic!("the multilevel global step needs a successful refactor first")
                 };
                 amg.apply_columns(work, rhs, z);
                 for (f, z) in z.iter().enumerate() {
@@ -370,7 +370,7 @@ impl<const D: usize> MultilevelSolve<D> {
     /// Solve from the guess in `x` (the last solution unless [`GlobalSolve::guess`] set one).
     fn solve(&mut self, rhs: &[SVector<f64, D>], mut out: impl FnMut(usize, SVector<f64, D>)) {
         let (Some(amg), Some(work)) = (&mut self.amg, &mut self.work) else {
-            unreachable!("a successful preparation precedes every solve")
+            panic!("the multilevel global step needs a successful refactor first")
         };
         let n = rhs.len();
         amg.product_columns(&self.x, &mut self.r);

@@ -430,3 +430,17 @@ fn two_dimensions_land_where_the_direct_path_does() {
     assert!(decrease > 0.0);
     assert!(gap.abs() <= 0.01 * decrease, "{gap:e} of {decrease:e}");
 }
+
+/// After a refactor that failed (here a singular matrix: a free cloth without mass), the
+/// hierarchy is gone, and a solve says so instead of using a stale one.
+#[test]
+#[should_panic(expected = "needs a successful refactor first")]
+fn a_solve_after_a_failed_refactor_says_why() {
+    let mesh = generators::cloth(8, 1e3).unwrap();
+    let mut pd = pd(&mesh, &[], multilevel());
+    let zero = vec![0.0; mesh.vertex_count()];
+    assert!(pd.refactor(mesh.springs(), &zero, H).is_err());
+    let y = mesh.positions().to_vec();
+    let mut x = y.clone();
+    let _ = pd.solve(mesh.springs(), &y, &mut x);
+}
