@@ -28,10 +28,11 @@
 //! the relative residual [`MULTILEVEL_TOLERANCE`], or at [`MULTILEVEL_MAX_ITERATIONS`] keeping its
 //! last iterate (a CG iterate from 0 on a positive definite system is a descent direction).
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use crate::amg::{Amg, AmgError, AmgParams};
 use crate::cholesky::{CholeskyError, CholeskyParams, Inertia, SparseCholesky};
@@ -208,9 +209,10 @@ pub struct MultilevelSolve {
     /// the path was taken for the factor's fill).
     needed: u64,
     budget: u64,
-    /// The matrix' pattern, kept when the path was taken for the factor's fill (the factor fits
-    /// the budget): the direct path's analysis for a problem the multilevel path cannot solve.
-    fallback: Option<SymbolicSparseColMat<usize>>,
+    /// The symbolic analysis and its time, kept when the path was taken for the factor's fill
+    /// (the factor fits the budget): the direct path for a problem the multilevel path cannot
+    /// solve, without analysing the pattern again.
+    fallback: Option<(Arc<SymbolicCholesky<usize>>, Duration)>,
     /// Block size and near-nullspace of the hierarchy's set-up (dropped once it is built).
     block: usize,
     near_nullspace: Vec<f64>,
@@ -504,9 +506,7 @@ impl LinearSolver {
             let budget = params.memory_budget.bytes();
             let mut multilevel = MultilevelSolve::new(pattern.nrows(), needed, budget);
             if needed <= budget {
-                multilevel.fallback = Some(pattern.to_owned().map_err(|_| {
-                    CholeskyError::Multilevel("the pattern could not be copied".to_string())
-                })?);
+                multilevel.fallback = Some((symbolic, analysis_time));
             }
             return Ok(LinearSolver::Multilevel(Box::new(multilevel)));
         }
@@ -523,18 +523,24 @@ impl LinearSolver {
         }
     }
 
-    /// On the multilevel path taken for the factor's fill, analyse the kept pattern for the
-    /// direct path (the factor fits the budget); otherwise nothing.
+    /// On the multilevel path taken for the factor's fill, take the direct path (the factor fits
+    /// the budget) with the kept symbolic analysis of `pattern`; otherwise nothing.
     ///
     /// # Errors
-    /// [`SparseCholesky::analyze`]'s.
+    /// [`SparseCholesky::with_symbolic`]'s.
     pub(crate) fn fall_back_to_direct(
         &mut self,
+        pattern: SymbolicSparseColMatRef<'_, usize>,
         params: CholeskyParams,
     ) -> Result<(), CholeskyError> {
         if let LinearSolver::Multilevel(m) = self {
-            if let Some(pattern) = &m.fallback {
-                *self = LinearSolver::Direct(SparseCholesky::analyze(pattern.as_ref(), params)?);
+            if let Some((symbolic, analysis_time)) = m.fallback.take() {
+                *self = LinearSolver::Direct(SparseCholesky::with_symbolic(
+                    symbolic,
+                    pattern,
+                    params,
+                    analysis_time,
+                )?);
             }
         }
         Ok(())

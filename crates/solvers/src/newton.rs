@@ -1463,7 +1463,7 @@ impl Newton {
             // Chosen for its fill, the multilevel path gives way to the factor (which fits the
             // budget) for a problem it cannot solve.
             self.cholesky
-                .fall_back_to_direct(self.params.cholesky)
+                .fall_back_to_direct(problem.pattern(), self.params.cholesky)
                 .map_err(Failure::Factorization)?;
         }
         if let Some(multilevel) = self.cholesky.multilevel_mut() {

@@ -49,15 +49,6 @@ pub enum PdError {
     Multilevel(#[from] AmgError),
 }
 
-impl From<global::GlobalSolveError> for PdError {
-    fn from(e: global::GlobalSolveError) -> Self {
-        match e {
-            global::GlobalSolveError::Factorization(e) => PdError::Factorization(e),
-            global::GlobalSolveError::Multilevel(e) => PdError::Multilevel(e),
-        }
-    }
-}
-
 impl PdParams {
     /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (m/s),
     /// [`PdMultilevelParams::validate`] and [`CholeskyParams::validate`].
@@ -196,8 +187,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
             ..params.cholesky
         };
         let n_free = free.free_count();
-        let multilevel =
-            || GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(n_free, params.multilevel)));
+        let multilevel = || GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(n_free)));
         let kind = match params.global_solve {
             GlobalSolveKind::Auto => Self::global_solve_for(n_free),
             kind => kind,
@@ -281,7 +271,8 @@ impl<const D: usize> ProjectiveDynamics<D> {
         self.h = h;
         self.pattern
             .system_into(springs, masses, h, &mut self.values);
-        self.global.factor(self.pattern.matrix(&self.values))?;
+        self.global
+            .factor(self.pattern.matrix(&self.values), &self.params.multilevel)?;
         if let Some(contact) = &mut self.contact {
             contact.rebuild(&self.pattern, springs, masses, h);
         }
@@ -449,16 +440,25 @@ impl<const D: usize> ProjectiveDynamics<D> {
         };
         match &mut self.contact {
             Some(contact) => {
-                contact.global_step(&mut self.global, &self.rhs, free_vertices, x, threads);
+                contact.global_step(
+                    &mut self.global,
+                    &self.rhs,
+                    free_vertices,
+                    x,
+                    threads,
+                    &self.params.multilevel,
+                );
                 for (f, &vertex) in free_vertices.iter().enumerate() {
                     let vertex = vertex as usize;
                     let new = contact.feasible_move(&x[vertex], &contact.solution()[f]);
                     update(x, vertex, new);
                 }
             }
-            None => self.global.solve(&self.rhs, threads, |f, new| {
-                update(x, free_vertices[f] as usize, new);
-            }),
+            None => self
+                .global
+                .solve(&self.rhs, threads, &self.params.multilevel, |f, new| {
+                    update(x, free_vertices[f] as usize, new);
+                }),
         }
         change
     }
@@ -481,7 +481,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
         x: &mut [SVector<f64, D>],
     ) -> Result<(), PdError> {
         if let Some(contact) = &mut self.contact {
-            contact.begin_step(&self.pattern, springs, y, x)?;
+            contact.begin_step(&self.pattern, springs, y, x, &self.params.multilevel)?;
         }
         Ok(())
     }
@@ -525,10 +525,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
                     cholesky.analysis_time(),
                 )?)))
             }
-            None => GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(
-                self.pattern.size(),
-                self.params.multilevel,
-            ))),
+            None => GlobalSolve::Multilevel(Box::new(MultilevelSolve::new(self.pattern.size()))),
         };
         self.contact = Some(Box::new(PdContact::new(
             model,

@@ -30,8 +30,7 @@ use hooke_assembly::pd::LaplacianPattern;
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
-use super::global::GlobalSolveError;
-use super::GlobalSolve;
+use super::{GlobalSolve, PdError, PdMultilevelParams};
 use crate::backward_euler::TIME_OF_IMPACT_SHARE;
 use crate::params::{self, ParamError};
 
@@ -181,7 +180,8 @@ impl<const D: usize> PdContact<D> {
         springs: &[Spring],
         y: &[SVector<f64, D>],
         x: &mut [SVector<f64, D>],
-    ) -> Result<(), GlobalSolveError> {
+        params: &PdMultilevelParams,
+    ) -> Result<(), PdError> {
         self.start.copy_from_slice(x);
         let start = &self.start;
         self.active.clear();
@@ -207,7 +207,7 @@ impl<const D: usize> PdContact<D> {
                 self.boosted[v as usize] += self.weights[f];
             }
             pattern.system_into(springs, &self.boosted, self.h, &mut self.values);
-            self.weighted.factor(pattern.matrix(&self.values))?;
+            self.weighted.factor(pattern.matrix(&self.values), params)?;
             self.factorizations += 1;
             self.factored = Some(self.weights.clone());
         }
@@ -249,11 +249,12 @@ impl<const D: usize> PdContact<D> {
         free: &[u32],
         x: &[SVector<f64, D>],
         threads: bool,
+        params: &PdMultilevelParams,
     ) {
         let solution = &mut self.solution;
         if self.active.is_empty() {
-            global.guess(|f| x[free[f] as usize]);
-            global.solve(rhs, threads, |f, new| solution[f] = new);
+            // (`global` starts from `x`: the caller set its guess.)
+            global.solve(rhs, threads, params, |f, new| solution[f] = new);
             return;
         }
         self.rhs.copy_from_slice(rhs);
@@ -271,7 +272,7 @@ impl<const D: usize> PdContact<D> {
         }
         self.weighted.guess(|f| x[free[f] as usize]);
         self.weighted
-            .solve(&self.rhs, threads, |f, new| solution[f] = new);
+            .solve(&self.rhs, threads, params, |f, new| solution[f] = new);
     }
 
     /// CG iterations of the last weighted solve (0 on the direct path).

@@ -9,6 +9,7 @@ use faer::sparse::SparseColMatRef;
 use faer::MatMut;
 use nalgebra::SVector;
 
+use super::PdError;
 use crate::amg::{Amg, AmgColumns, AmgError, AmgParams};
 use crate::cholesky::{CholeskyError, SparseCholesky};
 use crate::forest_solve::{self, ForestSolve};
@@ -85,7 +86,10 @@ pub struct PdMultilevelParams {
     /// CG iterations per global step at most (the step is a descent step whatever the count).
     /// Default 20.
     pub max_iterations: usize,
-    /// The hierarchy's settings (its near-nullspace is the constants).
+    /// The hierarchy's settings (its near-nullspace is the constants), read when a hierarchy is
+    /// built: by [`crate::ProjectiveDynamics::new`], and for contact's weighted matrix at the
+    /// first step with an active vertex; a refill keeps them. `tolerance` and `max_iterations`
+    /// are read at every solve.
     pub amg: AmgParams,
 }
 
@@ -122,18 +126,6 @@ impl PdMultilevelParams {
     }
 }
 
-/// Why the global matrix could not be prepared.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum GlobalSolveError {
-    /// The direct solve's factorisation failed.
-    #[error(transparent)]
-    Factorization(#[from] CholeskyError),
-    /// The multilevel hierarchy could not be built or refilled.
-    #[error("the multilevel global step: {0}")]
-    Multilevel(#[from] AmgError),
-}
-
 /// The global matrix, prepared for solves with D right-hand sides.
 #[derive(Debug)]
 pub(crate) enum GlobalSolve<const D: usize> {
@@ -142,15 +134,16 @@ pub(crate) enum GlobalSolve<const D: usize> {
 }
 
 impl<const D: usize> GlobalSolve<D> {
-    /// Prepare `matrix` (the pattern of the analysis). After a failure no stale factor or
-    /// hierarchy is used.
+    /// Prepare `matrix` (the pattern of the analysis); a hierarchy built here takes the settings
+    /// `params.amg`. After a failure no stale factor or hierarchy is used.
     pub(crate) fn factor(
         &mut self,
         matrix: SparseColMatRef<'_, usize, f64>,
-    ) -> Result<(), GlobalSolveError> {
+        params: &PdMultilevelParams,
+    ) -> Result<(), PdError> {
         match self {
             GlobalSolve::Direct(d) => Ok(d.factor(matrix)?),
-            GlobalSolve::Multilevel(m) => Ok(m.prepare(matrix)?),
+            GlobalSolve::Multilevel(m) => Ok(m.prepare(matrix, &params.amg)?),
         }
     }
 
@@ -165,16 +158,18 @@ impl<const D: usize> GlobalSolve<D> {
     }
 
     /// Solve for the D columns of `rhs` (one D-vector per free vertex) and hand each solution to
-    /// `out(free index, solution)`, on two threads if `threads` (same bits either way).
+    /// `out(free index, solution)`, on two threads if `threads` (same bits either way); the
+    /// multilevel path stops its CG as `params` says.
     pub(crate) fn solve(
         &mut self,
         rhs: &[SVector<f64, D>],
         threads: bool,
+        params: &PdMultilevelParams,
         out: impl FnMut(usize, SVector<f64, D>),
     ) {
         match self {
             GlobalSolve::Direct(d) => d.solve(rhs, threads, out),
-            GlobalSolve::Multilevel(m) => m.solve(rhs, out),
+            GlobalSolve::Multilevel(m) => m.solve(rhs, params, out),
         }
     }
 
@@ -190,10 +185,8 @@ impl<const D: usize> GlobalSolve<D> {
         match self {
             GlobalSolve::Direct(d) => d.solve(rhs, threads, out),
             GlobalSolve::Multilevel(m) => {
-                let MultilevelSolve { amg, work, z, .. } = &mut **m;
-                let (Some(amg), Some(work)) = (amg, work) else {
-                    panic!("the multilevel global step needs a successful refactor first")
-                };
+                let MultilevelSolve { hierarchy, z, .. } = &mut **m;
+                let (amg, work) = ready(hierarchy);
                 amg.apply_columns(work, rhs, z);
                 for (f, z) in z.iter().enumerate() {
                     out(f, *z);
@@ -316,9 +309,9 @@ impl<const D: usize> DirectSolve<D> {
 /// descent whatever the iteration count.
 #[derive(Debug)]
 pub(crate) struct MultilevelSolve<const D: usize> {
-    params: PdMultilevelParams,
-    amg: Option<Amg>,
-    work: Option<AmgColumns<D>>,
+    /// The hierarchy and its D-column cycle's buffers, once built and while its last refill
+    /// succeeded.
+    hierarchy: Option<(Amg, AmgColumns<D>)>,
     x: Vec<SVector<f64, D>>,
     r: Vec<SVector<f64, D>>,
     z: Vec<SVector<f64, D>>,
@@ -328,13 +321,21 @@ pub(crate) struct MultilevelSolve<const D: usize> {
     last_iterations: usize,
 }
 
+/// The hierarchy of a successful preparation.
+fn ready<const D: usize>(
+    hierarchy: &mut Option<(Amg, AmgColumns<D>)>,
+) -> (&mut Amg, &mut AmgColumns<D>) {
+    let (amg, work) = hierarchy
+        .as_mut()
+        .expect("the multilevel global step needs a successful refactor first");
+    (amg, work)
+}
+
 impl<const D: usize> MultilevelSolve<D> {
-    pub(crate) fn new(n: usize, params: PdMultilevelParams) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         let zero = || vec![SVector::zeros(); n];
         MultilevelSolve {
-            params,
-            amg: None,
-            work: None,
+            hierarchy: None,
             x: zero(),
             r: zero(),
             z: zero(),
@@ -345,48 +346,52 @@ impl<const D: usize> MultilevelSolve<D> {
         }
     }
 
-    /// Build the hierarchy for `matrix` (the first time), or refill it (same pattern).
-    fn prepare(&mut self, matrix: SparseColMatRef<'_, usize, f64>) -> Result<(), AmgError> {
+    /// Build the hierarchy for `matrix` with `params` (the first time), or refill it (same
+    /// pattern, the settings it was built with).
+    fn prepare(
+        &mut self,
+        matrix: SparseColMatRef<'_, usize, f64>,
+        params: &AmgParams,
+    ) -> Result<(), AmgError> {
         let start = Instant::now();
-        let result = match &mut self.amg {
-            Some(amg) => amg.refresh(matrix),
+        let result = match self.hierarchy.take() {
+            Some((mut amg, work)) => amg.refresh(matrix).map(|()| (amg, work)),
             None => {
                 let ones = vec![1.0; matrix.nrows()];
-                Amg::new(matrix, 1, &ones, self.params.amg).map(|amg| {
-                    self.work = Some(amg.columns_workspace());
-                    self.amg = Some(amg);
+                Amg::new(matrix, 1, &ones, *params).map(|amg| {
+                    let work = amg.columns_workspace();
+                    (amg, work)
                 })
             }
         };
-        if result.is_err() {
-            // A failed refresh leaves a hierarchy that must not be applied.
-            self.amg = None;
-            self.work = None;
-        }
         self.prepare_time = start.elapsed();
-        result
+        // A failed refill leaves a hierarchy that must not be applied: it is dropped.
+        self.hierarchy = Some(result?);
+        Ok(())
     }
 
     /// Solve from the guess in `x` (the last solution unless [`GlobalSolve::guess`] set one).
-    fn solve(&mut self, rhs: &[SVector<f64, D>], mut out: impl FnMut(usize, SVector<f64, D>)) {
-        let (Some(amg), Some(work)) = (&mut self.amg, &mut self.work) else {
-            panic!("the multilevel global step needs a successful refactor first")
-        };
-        let n = rhs.len();
+    fn solve(
+        &mut self,
+        rhs: &[SVector<f64, D>],
+        params: &PdMultilevelParams,
+        mut out: impl FnMut(usize, SVector<f64, D>),
+    ) {
+        let (amg, work) = ready(&mut self.hierarchy);
         amg.product_columns(&self.x, &mut self.r);
         for (r, b) in self.r.iter_mut().zip(rhs) {
             *r = b - *r;
         }
         let norms = |v: &[SVector<f64, D>]| column_dots(v, v).map(f64::sqrt);
         let start = norms(&self.r);
-        let target = start * self.params.tolerance;
+        let target = start * params.tolerance;
         // Done where the residual is at the target already (or not a number: the NaN reaches the
         // caller's iterate through the solution).
         let above = |residual: f64, target: f64| residual > target;
         let mut done = SVector::<bool, D>::from_fn(|a, _| !above(start[a], target[a]));
         let mut rz = SVector::<f64, D>::zeros();
         let mut iterations = 0;
-        while iterations < self.params.max_iterations && !done.iter().all(|&d| d) {
+        while iterations < params.max_iterations && !done.iter().all(|&d| d) {
             amg.apply_columns(work, &self.r, &mut self.z);
             let rz_next = column_dots(&self.r, &self.z);
             let beta = SVector::<f64, D>::from_fn(|a, _| {
@@ -420,7 +425,7 @@ impl<const D: usize> MultilevelSolve<D> {
             }
         }
         self.last_iterations = iterations;
-        for (f, x) in self.x[..n].iter().enumerate() {
+        for (f, x) in self.x.iter().enumerate() {
             out(f, *x);
         }
     }

@@ -444,3 +444,29 @@ fn a_solve_after_a_failed_refactor_says_why() {
     let mut x = y.clone();
     let _ = pd.solve(mesh.springs(), &y, &mut x);
 }
+
+/// The CG's stop is read at every solve: settings changed after construction take effect (the
+/// bench and the simulation set `params` on a built solver).
+#[test]
+fn the_cg_stop_is_read_at_every_solve() {
+    let mut s = multilevel_step(generators::cloth(24, 1e3).unwrap(), &[0, 23]);
+    let (_, loose) = s.solve_plain(PdParams {
+        max_iterations: 5,
+        ..multilevel()
+    });
+    let (_, fixed) = s.solve_plain(PdParams {
+        max_iterations: 5,
+        multilevel: PdMultilevelParams {
+            tolerance: 0.0,
+            max_iterations: 7,
+            ..multilevel().multilevel
+        },
+        ..multilevel()
+    });
+    assert_eq!(fixed.linear_iterations, 5 * 7);
+    assert!(
+        loose.linear_iterations < 5 * 7,
+        "{}",
+        loose.linear_iterations
+    );
+}
