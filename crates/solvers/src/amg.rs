@@ -301,40 +301,112 @@ impl Csr {
         self.ptr[i]..self.ptr[i + 1]
     }
 
-    /// y = A x, row-parallel above a size (each row a serial sum: the same bits on any pool).
-    fn apply<T: Lane>(&self, x: &[T], y: &mut [T]) {
-        let row = |(i, yi): (usize, &mut T)| {
-            let mut s = T::zero();
-            for e in self.row(i) {
-                s += x[self.col[e] as usize] * self.val[e];
+    /// The K rows from row `lo`, all with row `lo`'s columns, side by side over the first `width`
+    /// of them: v_r − Σ_c a_rc x_c (`SUBTRACT`) or v_r + Σ_c a_rc x_c, x_c from `read`. Each x_c
+    /// and column index is read once for the K sums, and each sum adds its terms in the order of
+    /// the row walk, as one row at a time does: the same bits, K independent chains of additions
+    /// instead of one.
+    #[inline(always)]
+    fn rows_side_by_side<const K: usize, const SUBTRACT: bool, T: Lane>(
+        &self,
+        lo: usize,
+        width: usize,
+        read: impl Fn(usize) -> T,
+        mut v: [T; K],
+    ) -> [T; K] {
+        let first = self.ptr[lo];
+        let row_len = self.ptr[lo + 1] - first;
+        let cols = &self.col[first..first + width];
+        let rows: [&[f64]; K] = std::array::from_fn(|r| {
+            let start = first + r * row_len;
+            debug_assert_eq!(self.ptr[lo + r], start, "rows of one pattern");
+            &self.val[start..start + width]
+        });
+        for (t, &c) in cols.iter().enumerate() {
+            let xc = read(c as usize);
+            for r in 0..K {
+                if SUBTRACT {
+                    v[r] -= xc * rows[r][t];
+                } else {
+                    v[r] += xc * rows[r][t];
+                }
             }
-            *yi = s;
-        };
-        if y.len() >= 4096 {
-            y.par_iter_mut().enumerate().with_min_len(512).for_each(row);
-        } else {
-            y.iter_mut().enumerate().for_each(row);
         }
+        v
     }
 
-    /// r = b − A x.
-    fn residual<T: Lane>(&self, b: &[T], x: &[T], r: &mut [T]) {
-        let row = |(i, ri): (usize, &mut T)| {
-            let mut s = b[i];
-            for e in self.row(i) {
-                s -= x[self.col[e] as usize] * self.val[e];
+    /// `out = b − A x` (`SUBTRACT`) or `out = A x` (`b` unused) over the row blocks `blocks`
+    /// (bounds), blocks of 3 or 6 rows side by side when `uniform` (every block's rows have one
+    /// pattern); halves of many blocks in parallel. Each row a serial sum in
+    /// the row's order: the same bits whatever the pool.
+    fn apply_blocks<const SUBTRACT: bool, T: Lane>(
+        &self,
+        blocks: &[usize],
+        uniform: bool,
+        b: &[T],
+        x: &[T],
+        out: &mut [T],
+    ) {
+        const SERIAL_BLOCKS: usize = 1024;
+        let count = blocks.len() - 1;
+        if count > SERIAL_BLOCKS && out.len() >= 4096 {
+            let mid = count / 2;
+            let (low, high) = out.split_at_mut(blocks[mid] - blocks[0]);
+            rayon::join(
+                || self.apply_blocks::<SUBTRACT, T>(&blocks[..=mid], uniform, b, x, low),
+                || self.apply_blocks::<SUBTRACT, T>(&blocks[mid..], uniform, b, x, high),
+            );
+            return;
+        }
+        let base = blocks[0];
+        let init = |i: usize| if SUBTRACT { b[i] } else { T::zero() };
+        let read = |c: usize| x[c];
+        for w in blocks.windows(2) {
+            let (lo, hi) = (w[0], w[1]);
+            let width = self.ptr[lo + 1] - self.ptr[lo];
+            let out = &mut out[lo - base..hi - base];
+            match (uniform, hi - lo) {
+                (true, 3) => out.copy_from_slice(&self.rows_side_by_side::<3, SUBTRACT, T>(
+                    lo,
+                    width,
+                    read,
+                    std::array::from_fn(|r| init(lo + r)),
+                )),
+                (true, 6) => out.copy_from_slice(&self.rows_side_by_side::<6, SUBTRACT, T>(
+                    lo,
+                    width,
+                    read,
+                    std::array::from_fn(|r| init(lo + r)),
+                )),
+                _ => {
+                    for (i, o) in (lo..hi).zip(out.iter_mut()) {
+                        let mut v = init(i);
+                        for e in self.row(i) {
+                            if SUBTRACT {
+                                v -= x[self.col[e] as usize] * self.val[e];
+                            } else {
+                                v += x[self.col[e] as usize] * self.val[e];
+                            }
+                        }
+                        *o = v;
+                    }
+                }
             }
-            *ri = s;
-        };
-        if r.len() >= 4096 {
-            r.par_iter_mut().enumerate().with_min_len(512).for_each(row);
-        } else {
-            r.iter_mut().enumerate().for_each(row);
         }
     }
 }
 
-/// The pattern of C = A B (sorted rows).
+/// Whether the rows of each block (bounds `block_ptr`) of `a` have one pattern.
+fn uniform_rows(a: &Csr, block_ptr: &[usize]) -> bool {
+    block_ptr.windows(2).all(|w| {
+        let first = &a.col[a.row(w[0])];
+        (w[0] + 1..w[1]).all(|i| &a.col[a.row(i)] == first)
+    })
+}
+
+/// The pattern of C = A B (sorted rows). A row of A with the same pattern as the row before it
+/// (the rows of one vertex block, the coarse unknowns of one aggregate) has the same row in C,
+/// which is copied instead of formed again.
 fn product_pattern(a: &Csr, b: &Csr) -> Csr {
     let mut mark = vec![usize::MAX; b.n_cols];
     let mut ptr = Vec::with_capacity(a.n_rows + 1);
@@ -342,6 +414,11 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
     let mut col = Vec::new();
     for i in 0..a.n_rows {
         let start = col.len();
+        if i > 0 && a.col[a.row(i)] == a.col[a.row(i - 1)] {
+            col.extend_from_within(ptr[i - 1]..start);
+            ptr.push(col.len());
+            continue;
+        }
         for e in a.row(i) {
             for f in b.row(a.col[e] as usize) {
                 let j = b.col[f];
@@ -522,10 +599,24 @@ struct Level {
     /// Per block, the indices in `a.val` of its diagonal block's entries (row-major k × k;
     /// usize::MAX where not stored).
     diag_entries: Vec<usize>,
+    /// Whether the rows of every block have the same columns (a vertex block matrix stored in
+    /// full, as Newton's Hessian and every Galerkin level of it): the smoother then walks a
+    /// block's rows side by side.
+    uniform_rows: bool,
     transfer: Option<Transfer>,
     /// The blocks' split into the smoother's parts: part p holds blocks
     /// `parts[p]..parts[p + 1]` (one part: the plain sweep).
     parts: Vec<usize>,
+}
+
+/// One Gauss–Seidel sweep's order over the blocks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Sweep {
+    Forward,
+    Backward,
+    /// Forward from x = 0 (the pre-smoothing's first sweep): each block reads only the columns
+    /// before its own, the others being still zero.
+    ForwardFromZero,
 }
 
 /// The operators between a level and the next coarser one.
@@ -537,6 +628,10 @@ struct Transfer {
     p: Csr,
     /// R = Pᵀ.
     r: Csr,
+    /// Whether P's rows have one pattern per fine block and R's per coarse block
+    /// ([`uniform_rows`]).
+    p_uniform: bool,
+    r_uniform: bool,
     /// A P.
     ap: Csr,
     /// Per coarse unknown, the next entry of its row: scratch of the transpositions in
@@ -666,10 +761,14 @@ impl Amg {
             let r = transpose_pattern(&p);
             let ap = product_pattern(&level.a, &p);
             let coarse_a = product_pattern(&r, &ap);
+            let p_uniform = uniform_rows(&p, &level.block_ptr);
+            let r_uniform = uniform_rows(&r, &coarse_ptr);
             level.transfer = Some(Transfer {
                 t,
                 p,
                 r,
+                p_uniform,
+                r_uniform,
                 ap,
                 next: vec![0; coarse_size],
                 power: [vec![0.0; size], vec![0.0; size]],
@@ -845,15 +944,21 @@ impl Amg {
             let (upper, lower) = cycle.split_at_mut(l + 1);
             let v = &mut upper[l];
             v.x.fill(T::zero());
-            for _ in 0..sweeps {
-                level.sweep(&v.b, &mut v.x, &mut v.r, true);
+            for sweep in 0..sweeps {
+                let first = if sweep == 0 {
+                    Sweep::ForwardFromZero
+                } else {
+                    Sweep::Forward
+                };
+                level.sweep(&v.b, &mut v.x, &mut v.r, first);
                 if symmetric_each_side {
-                    level.sweep(&v.b, &mut v.x, &mut v.r, false);
+                    level.sweep(&v.b, &mut v.x, &mut v.r, Sweep::Backward);
                 }
             }
-            level.a.residual(&v.b, &v.x, &mut v.r);
+            level.residual(&v.b, &v.x, &mut v.r);
             let tr = level.transfer.as_ref().expect("above the coarsest");
-            tr.r.apply(&v.r, &mut lower[0].b);
+            let coarse_blocks = &self.levels[l + 1].block_ptr;
+            tr.r.apply_blocks::<false, T>(coarse_blocks, tr.r_uniform, &[], &v.r, &mut lower[0].b);
         }
         {
             let last = &mut cycle[depth - 1];
@@ -864,15 +969,21 @@ impl Amg {
             let (upper, lower) = cycle.split_at_mut(l + 1);
             let v = &mut upper[l];
             let tr = level.transfer.as_ref().expect("above the coarsest");
-            tr.p.apply(&lower[0].x, &mut v.r);
+            tr.p.apply_blocks::<false, T>(
+                &level.block_ptr,
+                tr.p_uniform,
+                &[],
+                &lower[0].x,
+                &mut v.r,
+            );
             for (x, c) in v.x.iter_mut().zip(&v.r) {
                 *x += *c;
             }
             for _ in 0..sweeps {
                 if symmetric_each_side {
-                    level.sweep(&v.b, &mut v.x, &mut v.r, true);
+                    level.sweep(&v.b, &mut v.x, &mut v.r, Sweep::Forward);
                 }
-                level.sweep(&v.b, &mut v.x, &mut v.r, false);
+                level.sweep(&v.b, &mut v.x, &mut v.r, Sweep::Backward);
             }
         }
         z.copy_from_slice(&cycle[0].x);
@@ -929,7 +1040,7 @@ impl Amg {
     ) {
         let a = &self.levels[0].a;
         assert!(x.len() == a.n_cols && y.len() == a.n_rows, "vector lengths");
-        a.apply(x, y);
+        self.levels[0].apply(x, y);
     }
 }
 
@@ -955,7 +1066,7 @@ impl LinearOperator for Amg {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        self.levels[0].a.apply(x, y)
+        self.levels[0].apply(x, y)
     }
 }
 
@@ -983,14 +1094,57 @@ impl Level {
                 }
             }
         }
+        let uniform_rows = uniform_rows(&a, &block_ptr);
         Level {
             a,
             block_ptr,
             diag_offset,
             diag_inv: vec![0.0; total],
             diag_entries,
+            uniform_rows,
             transfer: None,
             parts: vec![0, blocks],
+        }
+    }
+
+    /// y = A x.
+    fn apply<T: Lane>(&self, x: &[T], y: &mut [T]) {
+        self.a
+            .apply_blocks::<false, T>(&self.block_ptr, self.uniform_rows, &[], x, y);
+    }
+
+    /// r = b − A x.
+    fn residual<T: Lane>(&self, b: &[T], x: &[T], r: &mut [T]) {
+        self.a
+            .apply_blocks::<true, T>(&self.block_ptr, self.uniform_rows, b, x, r);
+    }
+
+    /// x_b = D_b⁻¹ y_b for the blocks `first..last`, `x` holding their rows (from the first
+    /// block's first row), `y` the whole level's; halves of many blocks in parallel (each block
+    /// solved alone: the same bits on any pool).
+    fn solve_diagonal(&self, first: usize, last: usize, y: &[f64], x: &mut [f64]) {
+        const SERIAL_BLOCKS: usize = 2048;
+        if last - first > SERIAL_BLOCKS {
+            let mid = first + (last - first) / 2;
+            let (low, high) = x.split_at_mut(self.block_ptr[mid] - self.block_ptr[first]);
+            rayon::join(
+                || self.solve_diagonal(first, mid, y, low),
+                || self.solve_diagonal(mid, last, y, high),
+            );
+            return;
+        }
+        let base = self.block_ptr[first];
+        for b in first..last {
+            let (lo, hi) = (self.block_ptr[b], self.block_ptr[b + 1]);
+            let k = hi - lo;
+            let inv = &self.diag_inv[self.diag_offset[b]..][..k * k];
+            for i in 0..k {
+                let mut sum = 0.0;
+                for j in 0..k {
+                    sum += inv[i * k + j] * y[lo + j];
+                }
+                x[lo + i - base] = sum;
+            }
         }
     }
 
@@ -1031,15 +1185,41 @@ impl Level {
         self.parts.push(blocks);
     }
 
+    /// s_r = b_r − Σ_c a_rc x_c for the rows `lo..hi` of one block, one row after the other, x_c
+    /// from `read`; under `from_zero` only the columns before the block's (the others are still
+    /// zero: their terms are exact zeros).
+    fn rows_one_by_one<T: Lane>(
+        &self,
+        lo: usize,
+        hi: usize,
+        b: &[T],
+        read: impl Fn(usize) -> T,
+        from_zero: bool,
+        s: &mut [T; AMG_MAX_BLOCK],
+    ) {
+        for i in lo..hi {
+            let mut v = b[i];
+            let mut entries = self.a.row(i);
+            if from_zero {
+                let cols = &self.a.col[entries.clone()];
+                entries.end = entries.start + cols.partition_point(|&c| (c as usize) < lo);
+            }
+            for e in entries {
+                v -= read(self.a.col[e] as usize) * self.a.val[e];
+            }
+            s[i - lo] = v;
+        }
+    }
+
     /// One block Gauss–Seidel sweep on A x = b, forward or backward over the blocks: over the
     /// whole level, or (several parts) over each part in parallel with the other parts' values
     /// from `start`, a scratch vector of the level's size that receives x at the sweep's start.
-    fn sweep<T: Lane>(&self, b: &[T], x: &mut [T], start: &mut [T], forward: bool) {
+    fn sweep<T: Lane>(&self, b: &[T], x: &mut [T], start: &mut [T], sweep: Sweep) {
         if self.parts.len() <= 2 {
-            self.sweep_part(b, x, 0, &[], 0..self.block_ptr.len() - 1, forward);
+            self.sweep_part(b, x, 0, &[], 0..self.block_ptr.len() - 1, sweep);
         } else {
             start.copy_from_slice(x);
-            self.sweep_parts(b, x, 0, &self.parts, start, forward);
+            self.sweep_parts(b, x, 0, &self.parts, start, sweep);
         }
     }
 
@@ -1052,18 +1232,18 @@ impl Level {
         offset: usize,
         parts: &[usize],
         start: &[T],
-        forward: bool,
+        sweep: Sweep,
     ) {
         if parts.len() == 2 {
-            self.sweep_part(b, x, offset, start, parts[0]..parts[1], forward);
+            self.sweep_part(b, x, offset, start, parts[0]..parts[1], sweep);
             return;
         }
         let mid = parts.len() / 2;
         let split = self.block_ptr[parts[mid]] - offset;
         let (left, right) = x.split_at_mut(split);
         rayon::join(
-            || self.sweep_parts(b, left, offset, &parts[..=mid], start, forward),
-            || self.sweep_parts(b, right, offset + split, &parts[mid..], start, forward),
+            || self.sweep_parts(b, left, offset, &parts[..=mid], start, sweep),
+            || self.sweep_parts(b, right, offset + split, &parts[mid..], start, sweep),
         );
     }
 
@@ -1076,9 +1256,11 @@ impl Level {
         offset: usize,
         outside: &[T],
         blocks: std::ops::Range<usize>,
-        forward: bool,
+        sweep: Sweep,
     ) {
         let rows = x.len();
+        let forward = sweep != Sweep::Backward;
+        let from_zero = sweep == Sweep::ForwardFromZero;
         let mut s = [T::zero(); AMG_MAX_BLOCK];
         let count = blocks.len();
         for step in 0..count {
@@ -1089,15 +1271,37 @@ impl Level {
             };
             let (lo, hi) = (self.block_ptr[blk], self.block_ptr[blk + 1]);
             let k = hi - lo;
-            for i in lo..hi {
-                let mut v = b[i];
-                for e in self.a.row(i) {
-                    let c = self.a.col[e] as usize;
-                    let local = c.wrapping_sub(offset);
-                    let xc = if local < rows { x[local] } else { outside[c] };
-                    v -= xc * self.a.val[e];
+            let read = |c: usize| {
+                let local = c.wrapping_sub(offset);
+                if local < rows {
+                    x[local]
+                } else {
+                    outside[c]
                 }
-                s[i - lo] = v;
+            };
+            let width = || {
+                let cols = &self.a.col[self.a.row(lo)];
+                if from_zero {
+                    cols.partition_point(|&c| (c as usize) < lo)
+                } else {
+                    cols.len()
+                }
+            };
+            let init = |r: usize| b[lo + r];
+            match (self.uniform_rows, k) {
+                (true, 3) => s[..3].copy_from_slice(&self.a.rows_side_by_side::<3, true, T>(
+                    lo,
+                    width(),
+                    read,
+                    std::array::from_fn(init),
+                )),
+                (true, 6) => s[..6].copy_from_slice(&self.a.rows_side_by_side::<6, true, T>(
+                    lo,
+                    width(),
+                    read,
+                    std::array::from_fn(init),
+                )),
+                _ => self.rows_one_by_one(lo, hi, b, read, from_zero, &mut s),
             }
             let inv = &self.diag_inv[self.diag_offset[blk]..self.diag_offset[blk] + k * k];
             for i in 0..k {
@@ -1113,7 +1317,9 @@ impl Level {
 
 /// ρ(D⁻¹A) of a level by power iteration from a fixed start, as the Rayleigh quotient
 /// xᵀAx / xᵀDx of the last iterate (D⁻¹A is similar to a symmetric matrix; the quotient converges
-/// from below). `power` holds two scratch vectors of the level's size.
+/// from below). `power` holds two scratch vectors of the level's size. The products, sums and
+/// block solves run in parallel on large levels, the sums in a fixed order (the same bits on any
+/// pool).
 fn spectral_radius(level: &Level, power: &mut [Vec<f64>; 2], iterations: usize) -> f64 {
     let [x, y] = power;
     // A fixed, sign-varying start (a hash of the index), so that no eigenvector is missed.
@@ -1122,39 +1328,35 @@ fn spectral_radius(level: &Level, power: &mut [Vec<f64>; 2], iterations: usize) 
         *v = (h as f64) / (1u64 << 24) as f64 - 0.5;
     }
     let a = &level.a;
+    let blocks = level.block_ptr.len() - 1;
     let mut rho = 1.0;
     for _ in 0..iterations {
-        a.apply(x, y);
+        level.apply(x, y);
         let xax = crate::operator::dot(x, y);
-        let mut xdx = 0.0;
-        for b in 0..level.block_ptr.len() - 1 {
+        let xdx = hooke_assembly::deterministic_sum(blocks, true, |b| {
             let (lo, hi) = (level.block_ptr[b], level.block_ptr[b + 1]);
             let k = hi - lo;
-            let o = level.diag_offset[b];
-            let inv = &level.diag_inv[o..o + k * k];
-            let entries = &level.diag_entries[o..o + k * k];
-            let mut t = [0.0; AMG_MAX_BLOCK];
+            let entries = &level.diag_entries[level.diag_offset[b]..][..k * k];
+            let mut sum = 0.0;
             for i in 0..k {
                 for j in 0..k {
-                    t[i] += inv[i * k + j] * y[lo + j];
                     let e = entries[i * k + j];
                     if e != usize::MAX {
-                        xdx += x[lo + i] * a.val[e] * x[lo + j];
+                        sum += x[lo + i] * a.val[e] * x[lo + j];
                     }
                 }
             }
-            y[lo..hi].copy_from_slice(&t[..k]);
-        }
+            sum
+        });
         if xdx > 0.0 && xax.is_finite() {
             rho = xax / xdx;
         }
-        let norm = crate::operator::dot(y, y).sqrt();
+        level.solve_diagonal(0, blocks, y, x);
+        let norm = crate::operator::dot(x, x).sqrt();
         if !(norm > 0.0 && norm.is_finite()) {
             break;
         }
-        for (xi, yi) in x.iter_mut().zip(y.iter()) {
-            *xi = yi / norm;
-        }
+        x.par_iter_mut().with_min_len(4096).for_each(|v| *v /= norm);
     }
     rho.max(f64::MIN_POSITIVE)
 }
@@ -1507,5 +1709,113 @@ mod tests {
         }
         let mut bad = [1.0, 2.0, 2.0, 1.0];
         assert!(!invert_spd_block(&mut bad, 2));
+    }
+
+    /// A symmetric block-tridiagonal matrix of `sizes` blocks (each block row one pattern),
+    /// strongly diagonally dominant, with sign-varying values from a fixed hash.
+    fn block_tridiagonal(sizes: &[usize]) -> (Csr, Vec<usize>) {
+        let mut block_ptr = vec![0];
+        for &k in sizes {
+            block_ptr.push(block_ptr.last().unwrap() + k);
+        }
+        let n = *block_ptr.last().unwrap();
+        let value = |i: usize, j: usize| {
+            let (lo, hi) = (i.min(j) as u64, i.max(j) as u64);
+            let h = (lo * 7919 + hi * 104_729).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            let v = h as f64 / (1u64 << 24) as f64 - 0.5;
+            if i == j {
+                v + 20.0
+            } else {
+                v
+            }
+        };
+        let (mut ptr, mut col, mut val) = (vec![0], Vec::new(), Vec::new());
+        for b in 0..sizes.len() {
+            let cols = block_ptr[b.saturating_sub(1)]..block_ptr[(b + 2).min(sizes.len())];
+            for i in block_ptr[b]..block_ptr[b + 1] {
+                for j in cols.clone() {
+                    col.push(j as u32);
+                    val.push(value(i, j));
+                }
+                ptr.push(col.len());
+            }
+        }
+        let a = Csr {
+            n_rows: n,
+            n_cols: n,
+            ptr,
+            col,
+            val,
+        };
+        (a, block_ptr)
+    }
+
+    /// The rows side by side (blocks of 3 and 6) give the bits of one row at a time, in the
+    /// products, the residuals and every kind of sweep, serial and split in parts.
+    #[test]
+    fn rows_side_by_side_are_the_bits_of_one_row_at_a_time() {
+        // Above AMG_PARTS_MIN_ROWS, so that two parts are two.
+        let mut sizes = vec![3; 2000];
+        sizes.extend([6; 500]);
+        sizes.extend([2, 5, 3, 1, 6]);
+        let (a, block_ptr) = block_tridiagonal(&sizes);
+        assert!(uniform_rows(&a, &block_ptr));
+        let n = a.n_rows;
+        let x: Vec<f64> = (0..n)
+            .map(|i| ((i * 37 % 101) as f64 - 50.0) / 7.0)
+            .collect();
+        let b: Vec<f64> = (0..n)
+            .map(|i| ((i * 53 % 97) as f64 - 48.0) / 3.0)
+            .collect();
+        for parts in [1, 2] {
+            let mut level = Level::new(a.clone(), block_ptr.clone());
+            level.invert_diagonal(0).expect("diagonally dominant");
+            level.split(parts);
+            assert_eq!(level.parts.len(), parts + 1);
+            let mut results = Vec::new();
+            for uniform in [true, false] {
+                level.uniform_rows = uniform;
+                let (mut y, mut r) = (vec![0.0; n], vec![0.0; n]);
+                level.apply(&x, &mut y);
+                level.residual(&b, &x, &mut r);
+                let mut sweeps = Vec::new();
+                for sweep in [Sweep::ForwardFromZero, Sweep::Forward, Sweep::Backward] {
+                    let mut z = if sweep == Sweep::ForwardFromZero {
+                        vec![0.0; n]
+                    } else {
+                        x.clone()
+                    };
+                    let mut start = vec![0.0; n];
+                    level.sweep(&b, &mut z, &mut start, sweep);
+                    sweeps.push(z);
+                }
+                results.push((y, r, sweeps));
+            }
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let (side, single) = (&results[0], &results[1]);
+            assert_eq!(bits(&side.0), bits(&single.0), "A x, {parts} part(s)");
+            assert_eq!(bits(&side.1), bits(&single.1), "b - A x, {parts} part(s)");
+            for (s, o) in side.2.iter().zip(&single.2) {
+                assert_eq!(bits(s), bits(o), "sweep, {parts} part(s)");
+            }
+        }
+    }
+
+    /// A forward sweep from zero that skips the columns at and after each block's is the full
+    /// forward sweep from zero.
+    #[test]
+    fn a_sweep_from_zero_is_the_full_sweep_from_zero() {
+        let (a, block_ptr) = block_tridiagonal(&[3; 40]);
+        let n = a.n_rows;
+        let mut level = Level::new(a, block_ptr);
+        level.invert_diagonal(0).expect("diagonally dominant");
+        let b: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
+        for uniform in [true, false] {
+            level.uniform_rows = uniform;
+            let (mut skipped, mut full, mut start) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            level.sweep(&b, &mut skipped, &mut start, Sweep::ForwardFromZero);
+            level.sweep(&b, &mut full, &mut start, Sweep::Forward);
+            assert_eq!(skipped, full);
+        }
     }
 }

@@ -400,6 +400,10 @@ impl Runner {
                     _ => Convergence::RelativeGradient,
                 };
                 objective.set_step(&problem.y, &problem.start.positions, unknowns);
+                // Each run is a first solve: the factor held from an earlier run of this same
+                // step (the warm-up, a repeat, another setting) would precondition its first
+                // iterations with a matrix no simulation has at that point.
+                newton.forget_held_factor();
                 let report = newton
                     .minimize(objective.as_mut(), unknowns)
                     .map_err(|e| e.to_string())?;
