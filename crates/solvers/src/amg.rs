@@ -406,8 +406,12 @@ fn uniform_rows(a: &Csr, block_ptr: &[usize]) -> bool {
 
 /// The pattern of C = A B (sorted rows). A row of A with the same pattern as the row before it
 /// (the rows of one vertex block, the coarse unknowns of one aggregate) has the same row in C,
-/// which is copied instead of formed again.
+/// which is copied instead of formed again; and a column of A whose row of B has the pattern of
+/// the row before it, met right after that row's column, adds nothing new and is passed over.
 fn product_pattern(a: &Csr, b: &Csr) -> Csr {
+    let same_as_previous: Vec<bool> = (0..b.n_rows)
+        .map(|i| i > 0 && b.col[b.row(i)] == b.col[b.row(i - 1)])
+        .collect();
     let mut mark = vec![usize::MAX; b.n_cols];
     let mut ptr = Vec::with_capacity(a.n_rows + 1);
     ptr.push(0);
@@ -419,8 +423,15 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
             ptr.push(col.len());
             continue;
         }
+        let mut previous = usize::MAX;
         for e in a.row(i) {
-            for f in b.row(a.col[e] as usize) {
+            let c = a.col[e] as usize;
+            let repeat = same_as_previous[c] && previous == c - 1;
+            previous = c;
+            if repeat {
+                continue;
+            }
+            for f in b.row(c) {
                 let j = b.col[f];
                 if mark[j as usize] != i {
                     mark[j as usize] = i;
@@ -441,31 +452,62 @@ fn product_pattern(a: &Csr, b: &Csr) -> Csr {
     }
 }
 
-/// The values of C = A B into C's pattern (from [`product_pattern`]), rows split into one
-/// contiguous chunk per scratch vector of `dense` (each zeroed, of at least C's column count, and
-/// zeroed again on return), the chunks in parallel. Each row is summed in a fixed order by one
-/// thread, so the bits do not depend on the split.
-fn product_values(a: &Csr, b: &Csr, c: &mut Csr, dense: &mut [Vec<f64>]) {
+/// The values of C = A B into C's pattern (from [`product_pattern`]). A's rows are taken by the
+/// blocks `blocks` (row bounds): a block whose rows have one pattern (`uniform`) is multiplied
+/// side by side, each row of B read once for the block's k rows, accumulated in a scratch vector
+/// interleaved by row (column j of row r at j k + r); each entry of C is still summed in the order
+/// of its row's walk, so the bits are those of one row at a time. The blocks are split into one
+/// contiguous chunk per scratch vector of `dense` (each zeroed, of at least C's column count
+/// times the largest block, and zeroed again on return), the chunks in parallel: the bits do not
+/// depend on the split.
+fn product_values(
+    a: &Csr,
+    blocks: &[usize],
+    uniform: bool,
+    b: &Csr,
+    c: &mut Csr,
+    dense: &mut [Vec<f64>],
+) {
     let Csr { ptr, col, val, .. } = c;
     let (ptr, col) = (&*ptr, &*col);
     for_each_chunk(
-        a.n_rows,
-        |i| ptr[i],
+        blocks.len() - 1,
+        |u| ptr[blocks[u]],
         val,
         dense,
         |first, last, values, dense| {
-            let base = ptr[first];
-            for i in first..last {
-                for e in a.row(i) {
-                    let av = a.val[e];
-                    for f in b.row(a.col[e] as usize) {
-                        dense[b.col[f] as usize] += av * b.val[f];
+            let base = ptr[blocks[first]];
+            for w in blocks[first..=last].windows(2) {
+                let (lo, hi) = (w[0], w[1]);
+                // The block's rows side by side, or (rows of several patterns) one at a time.
+                let k = if uniform { hi - lo } else { 1 };
+                let mut row = lo;
+                while row < hi {
+                    let a_first = a.ptr[row];
+                    let width = a.ptr[row + 1] - a_first;
+                    let mut av = [0.0; AMG_MAX_BLOCK];
+                    for t in 0..width {
+                        for (r, v) in av[..k].iter_mut().enumerate() {
+                            *v = a.val[a.ptr[row + r] + t];
+                        }
+                        for f in b.row(a.col[a_first + t] as usize) {
+                            let (j, bv) = (b.col[f] as usize, b.val[f]);
+                            let slot = &mut dense[j * k..j * k + k];
+                            for (d, v) in slot.iter_mut().zip(&av[..k]) {
+                                *d += v * bv;
+                            }
+                        }
                     }
-                }
-                for e in ptr[i]..ptr[i + 1] {
-                    let j = col[e] as usize;
-                    values[e - base] = dense[j];
-                    dense[j] = 0.0;
+                    let cols = &col[ptr[row]..ptr[row + 1]];
+                    for r in 0..k {
+                        let out = &mut values[ptr[row + r] - base..ptr[row + r + 1] - base];
+                        for (o, &j) in out.iter_mut().zip(cols) {
+                            let d = &mut dense[j as usize * k + r];
+                            *o = *d;
+                            *d = 0.0;
+                        }
+                    }
+                    row += k;
                 }
             }
         },
@@ -653,10 +695,12 @@ pub struct Amg {
     /// The coarsest matrix' pattern with faer's index type, for its factorisations.
     coarse_pattern: SymbolicSparseColMat<usize>,
     /// Scratch of the product numerics, one per rayon thread (grown when the pool is larger than
-    /// at the last fill), each as long as the largest column count.
+    /// at the last fill), each `largest × widest` long.
     dense: Vec<Vec<f64>>,
-    /// The largest column count of the products (the scratch length).
+    /// The largest column count of the products, and the largest block (the scratch length is
+    /// their product).
     largest: usize,
+    widest: usize,
     /// The given matrix' stored entries (its pattern check in [`Amg::refresh`]).
     fine_nnz: usize,
 }
@@ -778,6 +822,11 @@ impl Amg {
             k = nullspace.len() / levels.last().expect("pushed").a.n_rows;
         }
         let largest = levels.iter().map(|l| l.a.n_cols).max().unwrap_or(0);
+        let widest = levels
+            .iter()
+            .flat_map(|l| l.block_ptr.windows(2).map(|w| w[1] - w[0]))
+            .max()
+            .unwrap_or(1);
         let last = &levels.last().expect("one level at least").a;
         let coarse_pattern = SymbolicSparseColMat::new_checked(
             last.n_rows,
@@ -805,6 +854,7 @@ impl Amg {
             coarse_pattern,
             dense: Vec::new(),
             largest,
+            widest,
             fine_nnz,
         };
         amg.fill()?;
@@ -863,7 +913,7 @@ impl Amg {
         }
         let threads = rayon::current_num_threads().max(1);
         while self.dense.len() < threads {
-            self.dense.push(vec![0.0; self.largest]);
+            self.dense.push(vec![0.0; self.largest * self.widest]);
         }
         let dense = &mut self.dense[..threads];
         let omega_scale = self.params.prolongator_damping;
@@ -891,7 +941,14 @@ impl Amg {
             );
             // R = Pᵀ: P's entries, walked by rows, to their places in R (as transpose_pattern
             // laid them out).
-            let Transfer { p, r, ap, next, .. } = tr;
+            let Transfer {
+                p,
+                r,
+                ap,
+                next,
+                r_uniform,
+                ..
+            } = tr;
             next.copy_from_slice(&r.ptr[..r.n_rows]);
             for i in 0..p.n_rows {
                 for e in p.row(i) {
@@ -900,9 +957,10 @@ impl Amg {
                     next[j] += 1;
                 }
             }
-            product_values(&level.a, p, ap, dense);
-            let coarse = &mut lower[0].a;
-            product_values(r, ap, coarse, dense);
+            product_values(&level.a, &level.block_ptr, level.uniform_rows, p, ap, dense);
+            let coarse = &mut lower[0];
+            product_values(r, &coarse.block_ptr, *r_uniform, ap, &mut coarse.a, dense);
+            let coarse = &mut coarse.a;
             // Exact symmetry: the mean of each entry and its transpose. The pattern Pᵀ A P is
             // symmetric, so walking the rows in order meets the entries (i, j) of column j in
             // the order of row j's entries (j, i).
@@ -1500,73 +1558,96 @@ fn tentative(
 ) -> (Csr, Vec<usize>, Vec<f64>) {
     let n = *block_ptr.last().expect("non-empty");
     let count = aggregates.iter().map(|&a| a + 1).max().unwrap_or(0);
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
-    for (b, &a) in aggregates.iter().enumerate() {
-        members[a].push(b);
+    // The blocks of each aggregate, in block order (a counting sort).
+    let mut member_ptr = vec![0usize; count + 1];
+    for &a in aggregates {
+        member_ptr[a + 1] += 1;
     }
-    // Per fine unknown: (coarse column, value) pairs.
-    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
-    let mut coarse_ptr = vec![0usize];
-    let mut coarse_r: Vec<Vec<f64>> = Vec::new(); // per coarse unknown, its row of R (k values)
-    for agg in &members {
-        let dofs: Vec<usize> = agg
-            .iter()
-            .flat_map(|&b| block_ptr[b]..block_ptr[b + 1])
-            .collect();
+    for a in 0..count {
+        member_ptr[a + 1] += member_ptr[a];
+    }
+    let mut members = vec![0usize; aggregates.len()];
+    let mut next = member_ptr.clone();
+    for (b, &a) in aggregates.iter().enumerate() {
+        members[next[a]] = b;
+        next[a] += 1;
+    }
+    // Per fine unknown, its aggregate's first coarse column, its aggregate's Q (row-major
+    // m × kept, the unknown's row at `q_row`) and the kept count.
+    let mut q_of = vec![(0usize, 0usize, 0usize); n];
+    let mut q_all: Vec<f64> = Vec::with_capacity(n * k);
+    let mut coarse_ptr = Vec::with_capacity(count + 1);
+    coarse_ptr.push(0);
+    let mut coarse_r: Vec<f64> = Vec::new(); // per coarse unknown, its row of R (k values)
+    let (mut dofs, mut v, mut q, mut coefficients) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for a in 0..count {
+        dofs.clear();
+        dofs.extend(
+            members[member_ptr[a]..member_ptr[a + 1]]
+                .iter()
+                .flat_map(|&b| block_ptr[b]..block_ptr[b + 1]),
+        );
         let m = dofs.len();
-        let mut q: Vec<Vec<f64>> = Vec::new();
-        let mut r_rows: Vec<Vec<f64>> = Vec::new();
+        if m == 0 {
+            coarse_ptr.push(*coarse_ptr.last().expect("non-empty"));
+            continue;
+        }
+        // The kept columns of Q, column after column (m values each).
+        q.clear();
+        let first_r = coarse_r.len();
+        let mut kept = 0;
         for c in 0..k {
-            let mut v: Vec<f64> = dofs.iter().map(|&d| nullspace[c * n + d]).collect();
+            v.clear();
+            v.extend(dofs.iter().map(|&d| nullspace[c * n + d]));
             let original = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            let mut coefficients = vec![0.0; q.len()];
-            for (j, qj) in q.iter().enumerate() {
+            coefficients.clear();
+            for qj in q.chunks_exact(m) {
                 let proj: f64 = qj.iter().zip(&v).map(|(a, b)| a * b).sum();
-                coefficients[j] = proj;
+                coefficients.push(proj);
                 for (vi, qi) in v.iter_mut().zip(qj) {
                     *vi -= proj * qi;
                 }
             }
             let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
             for (j, &p) in coefficients.iter().enumerate() {
-                r_rows[j][c] = p;
+                coarse_r[first_r + j * k + c] = p;
             }
-            if q.len() < m && norm > 1e-10 * original && norm > 0.0 {
-                for vi in &mut v {
-                    *vi /= norm;
-                }
-                let mut row = vec![0.0; k];
-                row[c] = norm;
-                r_rows.push(row);
-                q.push(v);
+            if kept < m && norm > 1e-10 * original && norm > 0.0 {
+                q.extend(v.iter().map(|vi| vi / norm));
+                coarse_r.extend(std::iter::repeat_n(0.0, k));
+                coarse_r[first_r + kept * k + c] = norm;
+                kept += 1;
             }
         }
         let base = *coarse_ptr.last().expect("non-empty");
-        for (j, qj) in q.iter().enumerate() {
-            for (i, &d) in dofs.iter().enumerate() {
-                if qj[i] != 0.0 {
-                    rows[d].push((base + j, qj[i]));
-                }
-            }
+        let q_start = q_all.len();
+        // Row-major per unknown: unknown i's kept values side by side.
+        for i in 0..m {
+            q_all.extend((0..kept).map(|j| q[j * m + i]));
         }
-        coarse_ptr.push(base + q.len());
-        coarse_r.extend(r_rows);
+        for (i, &d) in dofs.iter().enumerate() {
+            q_of[d] = (base, q_start + i * kept, kept);
+        }
+        coarse_ptr.push(base + kept);
     }
     let coarse_n = *coarse_ptr.last().expect("non-empty");
-    let mut ptr = vec![0];
-    let mut col = Vec::new();
-    let mut val = Vec::new();
-    for row in &mut rows {
-        row.sort_unstable_by_key(|&(c, _)| c);
-        for &(c, v) in row.iter() {
-            // A coarse index is below the fine dimension, itself ≤ u32::MAX.
-            col.push(c as u32);
-            val.push(v);
+    let mut ptr = Vec::with_capacity(n + 1);
+    ptr.push(0);
+    let mut col = Vec::with_capacity(n * k);
+    let mut val = Vec::with_capacity(n * k);
+    for &(base, q_row, kept) in &q_of {
+        for (j, &value) in q_all[q_row..q_row + kept].iter().enumerate() {
+            if value != 0.0 {
+                // A coarse index is below the fine dimension, itself ≤ u32::MAX.
+                col.push((base + j) as u32);
+                val.push(value);
+            }
         }
         ptr.push(col.len());
     }
     let mut coarse_nullspace = vec![0.0; coarse_n * k];
-    for (i, row) in coarse_r.iter().enumerate() {
+    for (i, row) in coarse_r.chunks_exact(k).enumerate() {
         for c in 0..k {
             coarse_nullspace[c * coarse_n + i] = row[c];
         }
@@ -1585,8 +1666,13 @@ fn tentative(
 }
 
 /// The pattern of P = T − ω D⁻¹ A T: per block, the union of its rows' patterns in T and A T (D⁻¹
-/// mixes the rows of a block), A T's taken from A's and T's patterns without forming it.
+/// mixes the rows of a block), A T's taken from A's and T's patterns without forming it. A row of
+/// A with the pattern of the block's row before it, and a row of T with the pattern of the row
+/// before it met right after it, add nothing new and are passed over.
 fn smoothed_pattern(a: &Csr, t: &Csr, block_ptr: &[usize]) -> Csr {
+    let t_same_as_previous: Vec<bool> = (0..t.n_rows)
+        .map(|i| i > 0 && t.col[t.row(i)] == t.col[t.row(i - 1)])
+        .collect();
     let mut mark = vec![usize::MAX; t.n_cols];
     let mut ptr = vec![0];
     let mut col = Vec::new();
@@ -1601,8 +1687,17 @@ fn smoothed_pattern(a: &Csr, t: &Csr, block_ptr: &[usize]) -> Csr {
         };
         for i in block_ptr[b]..block_ptr[b + 1] {
             t.row(i).for_each(|f| add(t.col[f]));
+            if i > block_ptr[b] && a.col[a.row(i)] == a.col[a.row(i - 1)] {
+                continue;
+            }
+            let mut previous = usize::MAX;
             for e in a.row(i) {
-                t.row(a.col[e] as usize).for_each(|f| add(t.col[f]));
+                let c = a.col[e] as usize;
+                let repeat = t_same_as_previous[c] && previous == c - 1;
+                previous = c;
+                if !repeat {
+                    t.row(c).for_each(|f| add(t.col[f]));
+                }
             }
         }
         block_cols.sort_unstable();
@@ -1799,6 +1894,50 @@ mod tests {
                 assert_eq!(bits(s), bits(o), "sweep, {parts} part(s)");
             }
         }
+    }
+
+    /// The patterns that pass over repeated rows are the plain products' patterns.
+    #[test]
+    fn patterns_passing_over_repeated_rows_are_the_plain_ones() {
+        let (a, block_ptr) = block_tridiagonal(&[3, 3, 1, 3, 2, 3, 3, 3, 6, 6, 3, 1, 3]);
+        let blocks = block_ptr.len() - 1;
+        let aggregates: Vec<usize> = (0..blocks).map(|b| b / 3).collect();
+        let modes: Vec<f64> = (0..2 * a.n_rows)
+            .map(|i| if i < a.n_rows { 1.0 } else { i as f64 })
+            .collect();
+        let (t, _, _) = tentative(&aggregates, &block_ptr, &modes, 2);
+        let rows = |m: &Csr| -> Vec<Vec<u32>> {
+            (0..m.n_rows).map(|i| m.col[m.row(i)].to_vec()).collect()
+        };
+        let plain = |a: &Csr, b: &Csr| -> Vec<Vec<u32>> {
+            (0..a.n_rows)
+                .map(|i| {
+                    let set: std::collections::BTreeSet<u32> = a.col[a.row(i)]
+                        .iter()
+                        .flat_map(|&c| b.col[b.row(c as usize)].iter().copied())
+                        .collect();
+                    set.into_iter().collect()
+                })
+                .collect()
+        };
+        assert_eq!(rows(&product_pattern(&a, &a)), plain(&a, &a));
+        assert_eq!(rows(&product_pattern(&a, &t)), plain(&a, &t));
+        let p = smoothed_pattern(&a, &t, &block_ptr);
+        let at = plain(&a, &t);
+        for (b, w) in block_ptr.windows(2).enumerate() {
+            let union: std::collections::BTreeSet<u32> = (w[0]..w[1])
+                .flat_map(|i| t.col[t.row(i)].iter().chain(&at[i]).copied())
+                .collect();
+            for i in w[0]..w[1] {
+                assert_eq!(
+                    p.col[p.row(i)].to_vec(),
+                    union.iter().copied().collect::<Vec<_>>(),
+                    "block {b}"
+                );
+            }
+        }
+        let r = transpose_pattern(&p);
+        assert_eq!(rows(&product_pattern(&r, &a)), plain(&r, &a));
     }
 
     /// A forward sweep from zero that skips the columns at and after each block's is the full
