@@ -396,6 +396,41 @@ impl Csr {
     }
 }
 
+/// The symbolic set-up of the next coarser level below `level` (near-nullspace `nullspace`,
+/// column-major, `k` columns): its transfer operators' patterns, the coarse level (its matrix'
+/// pattern) and the coarse near-nullspace; `None` when aggregation does not coarsen.
+fn coarsen(
+    level: &Level,
+    nullspace: &[f64],
+    k: usize,
+    strength_threshold: f64,
+) -> Option<(Transfer, Level, Vec<f64>)> {
+    let size = level.a.n_rows;
+    let aggregates = aggregate(&level.a, &level.block_ptr, strength_threshold);
+    let (t, coarse_ptr, coarse_nullspace) = tentative(&aggregates, &level.block_ptr, nullspace, k);
+    let coarse_size = *coarse_ptr.last().expect("non-empty");
+    if coarse_size >= size || coarse_size == 0 {
+        return None;
+    }
+    let p = smoothed_pattern(&level.a, &t, &level.block_ptr);
+    let r = transpose_pattern(&p);
+    let ap = product_pattern(&level.a, &p);
+    let coarse_a = product_pattern(&r, &ap);
+    let p_uniform = uniform_rows(&p, &level.block_ptr);
+    let r_uniform = uniform_rows(&r, &coarse_ptr);
+    let transfer = Transfer {
+        t,
+        p,
+        r,
+        p_uniform,
+        r_uniform,
+        ap,
+        next: vec![0; coarse_size],
+        power: [vec![0.0; size], vec![0.0; size]],
+    };
+    Some((transfer, Level::new(coarse_a, coarse_ptr), coarse_nullspace))
+}
+
 /// Whether the rows of each block (bounds `block_ptr`) of `a` have one pattern.
 fn uniform_rows(a: &Csr, block_ptr: &[usize]) -> bool {
     block_ptr.windows(2).all(|w| {
@@ -783,43 +818,34 @@ impl Amg {
         let fine = csr_of(a)?;
         let fine_nnz = fine.col.len();
         let block_ptr: Vec<usize> = (0..=n / block_size).map(|b| b * block_size).collect();
-        let mut levels = vec![Level::new(fine, block_ptr)];
-        let mut nullspace = near_nullspace.to_vec();
-        let mut k = k;
-        // Symbolic set-up, level by level, refilling each coarse matrix to build the next.
-        loop {
+        let mut finest = Level::new(fine, block_ptr);
+        finest.invert_diagonal(0)?;
+        let coarsens = |level: &Level, depth: usize| {
+            level.a.n_rows > params.max_coarse && depth < params.max_levels
+        };
+        // The finest level's ρ(D⁻¹A) needs no aggregate: it is computed beside the finest level's
+        // symbolic set-up (on another thread of the pool, when it has one).
+        let (finest_rho, first) = if coarsens(&finest, 1) {
+            let mut power = [vec![0.0; n], vec![0.0; n]];
+            let (rho, first) = rayon::join(
+                || spectral_radius(&finest, &mut power, params.spectral_radius_iterations),
+                || coarsen(&finest, near_nullspace, k, params.strength_threshold),
+            );
+            (Some((rho, power)), first)
+        } else {
+            (None, None)
+        };
+        let mut levels = vec![finest];
+        let mut next = first;
+        while let Some((transfer, coarse, nullspace)) = next.take() {
+            levels.last_mut().expect("one level at least").transfer = Some(transfer);
+            levels.push(coarse);
             let depth = levels.len();
-            let level = levels.last_mut().expect("one level at least");
-            let size = level.a.n_rows;
-            if size <= params.max_coarse || depth >= params.max_levels {
-                break;
+            let level = levels.last().expect("pushed");
+            if coarsens(level, depth) {
+                let k = nullspace.len() / level.a.n_rows;
+                next = coarsen(level, &nullspace, k, params.strength_threshold);
             }
-            let aggregates = aggregate(&level.a, &level.block_ptr, params.strength_threshold);
-            let (t, coarse_ptr, coarse_nullspace) =
-                tentative(&aggregates, &level.block_ptr, &nullspace, k);
-            let coarse_size = *coarse_ptr.last().expect("non-empty");
-            if coarse_size >= size || coarse_size == 0 {
-                break;
-            }
-            let p = smoothed_pattern(&level.a, &t, &level.block_ptr);
-            let r = transpose_pattern(&p);
-            let ap = product_pattern(&level.a, &p);
-            let coarse_a = product_pattern(&r, &ap);
-            let p_uniform = uniform_rows(&p, &level.block_ptr);
-            let r_uniform = uniform_rows(&r, &coarse_ptr);
-            level.transfer = Some(Transfer {
-                t,
-                p,
-                r,
-                p_uniform,
-                r_uniform,
-                ap,
-                next: vec![0; coarse_size],
-                power: [vec![0.0; size], vec![0.0; size]],
-            });
-            levels.push(Level::new(coarse_a, coarse_ptr));
-            nullspace = coarse_nullspace;
-            k = nullspace.len() / levels.last().expect("pushed").a.n_rows;
         }
         let largest = levels.iter().map(|l| l.a.n_cols).max().unwrap_or(0);
         let widest = levels
@@ -857,7 +883,12 @@ impl Amg {
             widest,
             fine_nnz,
         };
-        amg.fill()?;
+        if let (Some((rho, power)), Some(tr)) = (finest_rho, amg.levels[0].transfer.as_mut()) {
+            tr.power = power;
+            amg.fill(Some(rho))?;
+        } else {
+            amg.fill(None)?;
+        }
         Ok(amg)
     }
 
@@ -887,7 +918,7 @@ impl Amg {
             }
             fine.val[range].copy_from_slice(a.val_of_col(j));
         }
-        self.fill()
+        self.fill(None)
     }
 
     /// The number of levels, the finest included.
@@ -906,8 +937,9 @@ impl Amg {
         total as f64 / self.levels[0].a.col.len().max(1) as f64
     }
 
-    /// The numeric set-up from the finest matrix' values down.
-    fn fill(&mut self) -> Result<(), AmgError> {
+    /// The numeric set-up from the finest matrix' values down; `finest_rho`: the finest level's
+    /// ρ(D⁻¹A) when it is known, its diagonal blocks already inverted.
+    fn fill(&mut self, finest_rho: Option<f64>) -> Result<(), AmgError> {
         if self.levels[0].a.val.iter().any(|v| !v.is_finite()) {
             return Err(AmgError::NonFinite);
         }
@@ -921,12 +953,15 @@ impl Amg {
         for depth in 0..self.levels.len() {
             let (upper, lower) = self.levels.split_at_mut(depth + 1);
             let level = &mut upper[depth];
-            level.invert_diagonal(depth)?;
+            let known_rho = finest_rho.filter(|_| depth == 0);
+            if known_rho.is_none() {
+                level.invert_diagonal(depth)?;
+            }
             let Some(tr) = level.transfer.as_mut() else {
                 continue;
             };
             let mut power = std::mem::take(&mut tr.power);
-            let rho = spectral_radius(level, &mut power, iterations);
+            let rho = known_rho.unwrap_or_else(|| spectral_radius(level, &mut power, iterations));
             let omega = omega_scale / rho;
             let tr = level.transfer.as_mut().expect("checked");
             tr.power = power;
