@@ -681,23 +681,39 @@ pub enum IndefinitePolicy {
     /// Hessian is definite near the solution (the usual case), the last iterations are exact
     /// Newton steps and converge quadratically.
     ProjectedThenExact,
+    /// Factor the problem's [`NewtonProblem::definite_hessian`] once per iteration (shifted only
+    /// where rounding defeats it, as under [`IndefinitePolicy::Projected`]) and solve the exact
+    /// Newton system H Δ = −∇Φ by CG preconditioned with that factor, from 0, to the relative
+    /// residual min(0.1, ‖∇Φ‖/‖∇Φ₀‖) in at most [`PRECONDITIONED_CG_ITERATIONS`] iterations,
+    /// stopped at the first direction of non-positive curvature of H (the iterate so far, or
+    /// before the first iteration the definite matrix's own Newton step, which descends). One
+    /// factorisation per iteration and never a failed one from indefiniteness; where H is
+    /// definite and close to its definite part, the step is H's Newton step and convergence
+    /// quadratic.
+    ProjectedPreconditioned,
 }
+
+/// The CG iterations [`IndefinitePolicy::ProjectedPreconditioned`] allows per Newton iteration.
+pub const PRECONDITIONED_CG_ITERATIONS: usize = 20;
 
 impl IndefinitePolicy {
     /// Every policy, in the order of their documentation.
-    pub const ALL: [IndefinitePolicy; 5] = [
+    pub const ALL: [IndefinitePolicy; 6] = [
         IndefinitePolicy::ConvexBlend,
         IndefinitePolicy::NewtonIfDescent,
         IndefinitePolicy::Shift,
         IndefinitePolicy::Projected,
         IndefinitePolicy::ProjectedThenExact,
+        IndefinitePolicy::ProjectedPreconditioned,
     ];
 
     /// Whether the policy factors the problem's [`NewtonProblem::definite_hessian`].
     pub fn is_projected(self) -> bool {
         matches!(
             self,
-            IndefinitePolicy::Projected | IndefinitePolicy::ProjectedThenExact
+            IndefinitePolicy::Projected
+                | IndefinitePolicy::ProjectedThenExact
+                | IndefinitePolicy::ProjectedPreconditioned
         )
     }
 
@@ -710,6 +726,7 @@ impl IndefinitePolicy {
             IndefinitePolicy::Shift => "shift",
             IndefinitePolicy::Projected => "projected",
             IndefinitePolicy::ProjectedThenExact => "projected-exact",
+            IndefinitePolicy::ProjectedPreconditioned => "projected-pcg",
         }
     }
 }
@@ -1396,6 +1413,92 @@ impl Newton {
         }
     }
 
+    /// One step of [`IndefinitePolicy::ProjectedPreconditioned`] from `x` (`gradient`: the relative
+    /// ‖∇Φ‖): the definite Hessian factored, the exact Newton system solved by truncated CG
+    /// preconditioned with that factor, and the line search along its step, or along the
+    /// definite matrix's own Newton step should that one be refused. `None` if the line search
+    /// refused both.
+    fn preconditioned_step(
+        &mut self,
+        problem: &mut impl NewtonProblem,
+        x: &[f64],
+        p: &NewtonParams,
+        gradient: f64,
+        report: &mut NewtonReport,
+    ) -> Result<Option<(Accepted, f64)>, Failure> {
+        let h = problem
+            .definite_hessian(x)
+            .expect("has_definite_hessian promised a matrix");
+        self.hessian.copy_from_slice(h.val());
+        self.shift = 0.0;
+        let mut failed = 0;
+        loop {
+            match self.factor_at_shift(problem, x, IndefinitePolicy::Projected, report) {
+                Ok(_) => break,
+                Err(CholeskyError::Singular { .. } | CholeskyError::NotPositiveDefinite { .. }) => {
+                    failed += 1;
+                    self.shift = self.raise_shift(IndefinitePolicy::Projected);
+                    if self.shift > p.max_shift {
+                        report.failed_factorizations += failed;
+                        return Err(Failure::NotPositiveDefinite {
+                            max_shift: p.max_shift,
+                        });
+                    }
+                }
+                Err(e) => return Err(Failure::Factorization(e)),
+            }
+        }
+        report.failed_factorizations += failed;
+        self.shifted.copy_from_slice(problem.hessian(x).val());
+        for (b, g) in self.rhs.iter_mut().zip(&self.g) {
+            *b = -g;
+        }
+        self.step.fill(0.0);
+        self.cg.params = CgParams {
+            tolerance: gradient.clamp(1e-12, 0.1),
+            max_iterations: PRECONDITIONED_CG_ITERATIONS,
+        };
+        let matrix = Symmetric(SparseColMatRef::new(problem.pattern(), &self.shifted));
+        let solved = self.cg.solve_into(
+            &matrix,
+            &mut self.cholesky,
+            &self.rhs,
+            &mut self.step,
+            &mut self.cg_report,
+            |_, _| false,
+        );
+        let iterations = match solved {
+            Ok(()) => self.cg_report.iterations,
+            Err(e) => match e.into_report() {
+                Some(failed) => {
+                    let iterations = failed.iterations;
+                    self.cg_report = failed;
+                    iterations
+                }
+                None => 0,
+            },
+        };
+        report.reuse_iterations += iterations;
+        for attempt in 0..2 {
+            if attempt == 1 || iterations == 0 {
+                // The definite matrix's own Newton step.
+                self.step.copy_from_slice(&self.rhs);
+                self.cholesky.solve_slice(&mut self.step);
+            }
+            report.step_size = problem.step_size(&self.step);
+            let slope = dot(&self.g, &self.step);
+            if slope < 0.0 {
+                if let Some(accepted) = self.line_search(problem, x, slope) {
+                    return Ok(Some((accepted, slope)));
+                }
+            }
+            if iterations == 0 {
+                break;
+            }
+        }
+        Ok(None)
+    }
+
     /// Backtracking line search from `x` along the current step, with slope gᵀΔ < 0.
     fn line_search(
         &mut self,
@@ -1503,6 +1606,12 @@ impl Newton {
         if p.indefinite.is_projected() && !problem.has_definite_hessian() {
             p.indefinite = IndefinitePolicy::ConvexBlend;
         }
+        if p.indefinite == IndefinitePolicy::ProjectedPreconditioned
+            && self.cholesky.multilevel().is_some()
+        {
+            // No factor to precondition with on the multilevel path.
+            p.indefinite = IndefinitePolicy::Projected;
+        }
         if p.indefinite == IndefinitePolicy::ConvexBlend && !problem.has_convexified_hessian() {
             p.indefinite = IndefinitePolicy::NewtonIfDescent;
         }
@@ -1551,141 +1660,164 @@ impl Newton {
             let mut exact_try = p.indefinite == IndefinitePolicy::ProjectedThenExact
                 && self.exact_next
                 && self.shift == 0.0;
-            {
-                let h = if p.indefinite.is_projected() && !exact_try {
-                    problem
-                        .definite_hessian(x)
-                        .expect("has_definite_hessian promised a matrix")
-                } else {
-                    problem.hessian(x)
-                };
-                assert_eq!(
-                    h.val().len(),
-                    self.hessian.len(),
-                    "the Hessian's pattern changed"
-                );
-                self.hessian.copy_from_slice(h.val());
-            }
-            // Factor H + μD and search along its Newton step; raise μ until a step is accepted.
             let mut failed = 0;
-            // Set when a search below has left the positive definite factor of the current shift.
-            let mut held_definite = false;
-            // The accepted step, the negative eigenvalues of its matrix, its slope gᵀΔ, and
-            // whether it met the step-size criterion.
-            let (accepted, negative, step_slope, small) = loop {
-                let mut reused = false;
-                let negative = if held_definite {
-                    held_definite = false;
-                    Some(0)
-                } else if reuse
-                    && failed == 0
-                    && self.shift == 0.0
-                    && self.solve_by_held_factor(problem, x, p.indefinite, report)
-                {
-                    reused = true;
-                    Some(0)
-                } else {
-                    match self.factor_at_shift(problem, x, p.indefinite, report) {
-                        Ok(inertia) if inertia.is_positive_definite() => Some(0),
-                        Ok(inertia) if p.indefinite == IndefinitePolicy::NewtonIfDescent => {
-                            Some(inertia.negative)
-                        }
-                        Ok(_)
-                        | Err(
-                            CholeskyError::Singular { .. }
-                            | CholeskyError::NotPositiveDefinite { .. },
-                        ) => None,
-                        Err(e) => return Err(Failure::Factorization(e)),
+            let (accepted, negative, step_slope, small) = if p.indefinite
+                == IndefinitePolicy::ProjectedPreconditioned
+            {
+                match self.preconditioned_step(problem, x, &p, gradient, report)? {
+                    Some((accepted, slope)) => {
+                        let small =
+                            step_test && self.shift == 0.0 && report.step_size <= p.tolerance;
+                        (accepted, 0, slope, small)
                     }
-                };
-                if let Some(negative) = negative {
-                    if !reused {
-                        // Δ = −(H + μD)⁻¹ g
-                        for (s, g) in self.step.iter_mut().zip(&self.g) {
-                            *s = -g;
-                        }
-                        self.cholesky.solve_slice(&mut self.step);
-                    }
-                    let slope = dot(&self.g, &self.step);
-                    let size = problem.step_size(&self.step);
-                    // Only a step of a matrix without the mass shift estimates the distance to
-                    // the solution (a shift shortens it at will).
-                    let unshifted = negative == 0
-                        && match p.indefinite {
-                            IndefinitePolicy::ConvexBlend => self.shift <= 1.0,
-                            _ => self.shift == 0.0,
-                        };
-                    let small = step_test && unshifted && size <= p.tolerance;
-                    report.step_size = size;
-                    if slope < 0.0 {
-                        if let Some(accepted) = self.line_search(problem, x, slope) {
-                            break (accepted, negative, slope, small);
-                        }
-                        if small {
-                            // The criterion holds at x: what is left is below the tolerance (and,
-                            // as no step of it lowers Φ, at the resolution of Φ).
-                            report.failed_factorizations += failed;
-                            finish(report, StopReason::Converged);
+                    None => {
+                        let noise = problem.gradient_round_off(x);
+                        let norm = dot(&self.g, &self.g).sqrt();
+                        if norm <= noise {
+                            finish(report, StopReason::RoundOff);
                             return Ok(());
                         }
+                        finish(report, StopReason::LineSearchFailed);
+                        return Err(Failure::LineSearchFailed);
+                    }
+                }
+            } else {
+                {
+                    let h = if p.indefinite.is_projected() && !exact_try {
+                        problem
+                            .definite_hessian(x)
+                            .expect("has_definite_hessian promised a matrix")
+                    } else {
+                        problem.hessian(x)
+                    };
+                    assert_eq!(
+                        h.val().len(),
+                        self.hessian.len(),
+                        "the Hessian's pattern changed"
+                    );
+                    self.hessian.copy_from_slice(h.val());
+                }
+                // Factor H + μD and search along its Newton step; raise μ until a step is accepted.
+                // Set when a search below has left the positive definite factor of the current
+                // shift.
+                let mut held_definite = false;
+                // The accepted step, the negative eigenvalues of its matrix, its slope gᵀΔ, and
+                // whether it met the step-size criterion.
+                loop {
+                    let mut reused = false;
+                    let negative = if held_definite {
+                        held_definite = false;
+                        Some(0)
+                    } else if reuse
+                        && failed == 0
+                        && self.shift == 0.0
+                        && self.solve_by_held_factor(problem, x, p.indefinite, report)
+                    {
+                        reused = true;
+                        Some(0)
+                    } else {
+                        match self.factor_at_shift(problem, x, p.indefinite, report) {
+                            Ok(inertia) if inertia.is_positive_definite() => Some(0),
+                            Ok(inertia) if p.indefinite == IndefinitePolicy::NewtonIfDescent => {
+                                Some(inertia.negative)
+                            }
+                            Ok(_)
+                            | Err(
+                                CholeskyError::Singular { .. }
+                                | CholeskyError::NotPositiveDefinite { .. },
+                            ) => None,
+                            Err(e) => return Err(Failure::Factorization(e)),
+                        }
+                    };
+                    if let Some(negative) = negative {
+                        if !reused {
+                            // Δ = −(H + μD)⁻¹ g
+                            for (s, g) in self.step.iter_mut().zip(&self.g) {
+                                *s = -g;
+                            }
+                            self.cholesky.solve_slice(&mut self.step);
+                        }
+                        let slope = dot(&self.g, &self.step);
+                        let size = problem.step_size(&self.step);
+                        // Only a step of a matrix without the mass shift estimates the distance to
+                        // the solution (a shift shortens it at will).
+                        let unshifted = negative == 0
+                            && match p.indefinite {
+                                IndefinitePolicy::ConvexBlend => self.shift <= 1.0,
+                                _ => self.shift == 0.0,
+                            };
+                        let small = step_test && unshifted && size <= p.tolerance;
+                        report.step_size = size;
+                        if slope < 0.0 {
+                            if let Some(accepted) = self.line_search(problem, x, slope) {
+                                break (accepted, negative, slope, small);
+                            }
+                            if small {
+                                // The criterion holds at x: what is left is below the tolerance (and,
+                                // as no step of it lowers Φ, at the resolution of Φ).
+                                report.failed_factorizations += failed;
+                                finish(report, StopReason::Converged);
+                                return Ok(());
+                            }
+                            if reused {
+                                // Judge the matrix by its own factor before giving up.
+                                reuse = false;
+                                continue;
+                            }
+                            if negative == 0 {
+                                report.failed_factorizations += failed;
+                                // A descent direction of a convex model on which no step lowers Φ:
+                                // either the gradient is round-off (the tolerance is below what the
+                                // arithmetic resolves), or objective and gradient disagree.
+                                let noise = problem.gradient_round_off(x);
+                                let norm = dot(&self.g, &self.g).sqrt();
+                                if norm <= noise {
+                                    finish(report, StopReason::RoundOff);
+                                    return Ok(());
+                                }
+                                finish(report, StopReason::LineSearchFailed);
+                                return Err(Failure::LineSearchFailed);
+                            }
+                        }
                         if reused {
-                            // Judge the matrix by its own factor before giving up.
+                            // An ascent direction from CG (only with rounding): factor instead.
                             reuse = false;
                             continue;
                         }
-                        if negative == 0 {
-                            report.failed_factorizations += failed;
-                            // A descent direction of a convex model on which no step lowers Φ:
-                            // either the gradient is round-off (the tolerance is below what the
-                            // arithmetic resolves), or objective and gradient disagree.
-                            let noise = problem.gradient_round_off(x);
-                            let norm = dot(&self.g, &self.g).sqrt();
-                            if norm <= noise {
-                                finish(report, StopReason::RoundOff);
-                                return Ok(());
-                            }
-                            finish(report, StopReason::LineSearchFailed);
-                            return Err(Failure::LineSearchFailed);
-                        }
                     }
-                    if reused {
-                        // An ascent direction from CG (only with rounding): factor instead.
-                        reuse = false;
+                    failed += 1;
+                    if exact_try {
+                        // The exact Hessian is not definite here: factor the definite one, and pause
+                        // before the next try.
+                        exact_try = false;
+                        self.exact_next = false;
+                        self.exact_backoff = (2 * self.exact_backoff).clamp(1, MAX_REUSE_BACKOFF);
+                        self.exact_pause = self.exact_backoff;
+                        let h = problem
+                            .definite_hessian(x)
+                            .expect("has_definite_hessian promised a matrix");
+                        self.hessian.copy_from_slice(h.val());
                         continue;
                     }
-                }
-                failed += 1;
-                if exact_try {
-                    // The exact Hessian is not definite here: factor the definite one, and pause
-                    // before the next try.
-                    exact_try = false;
-                    self.exact_next = false;
-                    self.exact_backoff = (2 * self.exact_backoff).clamp(1, MAX_REUSE_BACKOFF);
-                    self.exact_pause = self.exact_backoff;
-                    let h = problem
-                        .definite_hessian(x)
-                        .expect("has_definite_hessian promised a matrix");
-                    self.hessian.copy_from_slice(h.val());
-                    continue;
-                }
-                let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
-                    match self.search_definite_shift(problem, x, report, &mut failed)? {
-                        Some(held) => {
-                            held_definite = held;
-                            false
+                    let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {
+                        match self.search_definite_shift(problem, x, report, &mut failed)? {
+                            Some(held) => {
+                                held_definite = held;
+                                false
+                            }
+                            None => true,
                         }
-                        None => true,
+                    } else {
+                        self.shift = self.raise_shift(p.indefinite);
+                        self.shift > p.max_shift
+                    };
+                    if exhausted {
+                        report.failed_factorizations += failed;
+                        finish(report, StopReason::NotPositiveDefinite);
+                        return Err(Failure::NotPositiveDefinite {
+                            max_shift: p.max_shift,
+                        });
                     }
-                } else {
-                    self.shift = self.raise_shift(p.indefinite);
-                    self.shift > p.max_shift
-                };
-                if exhausted {
-                    report.failed_factorizations += failed;
-                    finish(report, StopReason::NotPositiveDefinite);
-                    return Err(Failure::NotPositiveDefinite {
-                        max_shift: p.max_shift,
-                    });
                 }
             };
             report.failed_factorizations += failed;

@@ -300,7 +300,9 @@ impl Runner {
             | SolverKind::NewtonProjected
             | SolverKind::NewtonProjectedTol
             | SolverKind::NewtonProjectedExact
-            | SolverKind::NewtonProjectedExactTol => {
+            | SolverKind::NewtonProjectedExactTol
+            | SolverKind::NewtonProjectedPcg
+            | SolverKind::NewtonProjectedPcgTol => {
                 let objective =
                     BackwardEulerStep::new(mesh.springs(), mesh.masses(), problem.free(), h);
                 let relaxed = matches!(
@@ -319,6 +321,9 @@ impl Runner {
                         }
                         SolverKind::NewtonProjectedExact | SolverKind::NewtonProjectedExactTol => {
                             IndefinitePolicy::ProjectedThenExact
+                        }
+                        SolverKind::NewtonProjectedPcg | SolverKind::NewtonProjectedPcgTol => {
+                            IndefinitePolicy::ProjectedPreconditioned
                         }
                         _ => NewtonParams::default().indefinite,
                     },
@@ -437,7 +442,13 @@ impl Runner {
                         report.region_factorizations
                     )
                 });
-                let note = [note, shifted, regions]
+                let cg = (report.reuse_iterations > 0).then(|| {
+                    format!(
+                        "{} CG iteration(s) on a held or definite factor",
+                        report.reuse_iterations
+                    )
+                });
+                let note = [note, shifted, cg, regions]
                     .into_iter()
                     .flatten()
                     .reduce(|a, b| format!("{a}; {b}"));

@@ -76,6 +76,12 @@ pub enum SolverKind {
     NewtonProjectedExact,
     /// `newton-projected-exact-tol:T`: as `newton-tol`, with that policy.
     NewtonProjectedExactTol,
+    /// `newton-projected-pcg:K`: as `newton`, the exact Newton system solved by CG preconditioned
+    /// with the factor of the definite Hessian, one factorisation per iteration
+    /// ([`crate::solvers::IndefinitePolicy::ProjectedPreconditioned`]).
+    NewtonProjectedPcg,
+    /// `newton-projected-pcg-tol:T`: as `newton-tol`, with that policy.
+    NewtonProjectedPcgTol,
 }
 
 impl SolverKind {
@@ -106,6 +112,8 @@ impl SolverKind {
         SolverKind::NewtonProjectedTol,
         SolverKind::NewtonProjectedExact,
         SolverKind::NewtonProjectedExactTol,
+        SolverKind::NewtonProjectedPcg,
+        SolverKind::NewtonProjectedPcgTol,
     ];
 
     /// The name in a spec and in the records' `solver` field.
@@ -136,6 +144,8 @@ impl SolverKind {
             SolverKind::NewtonProjectedTol => "newton-projected-tol",
             SolverKind::NewtonProjectedExact => "newton-projected-exact",
             SolverKind::NewtonProjectedExactTol => "newton-projected-exact-tol",
+            SolverKind::NewtonProjectedPcg => "newton-projected-pcg",
+            SolverKind::NewtonProjectedPcgTol => "newton-projected-pcg-tol",
         }
     }
 
@@ -176,6 +186,12 @@ impl SolverKind {
             SolverKind::NewtonProjectedExactTol => {
                 "Newton, definite then exact, to a relative gradient of T"
             }
+            SolverKind::NewtonProjectedPcg => {
+                "Newton, exact system by CG on the definite Hessian's factor"
+            }
+            SolverKind::NewtonProjectedPcgTol => {
+                "Newton, exact system by CG on the definite factor, to a relative gradient of T"
+            }
         };
         match self.values() {
             Values::Iterations => format!("{}:K,… ({what}, K iterations)", self.name()),
@@ -199,7 +215,8 @@ impl SolverKind {
             | SolverKind::NewtonCgAmg
             | SolverKind::NewtonRelaxed
             | SolverKind::NewtonProjected
-            | SolverKind::NewtonProjectedExact => Values::Iterations,
+            | SolverKind::NewtonProjectedExact
+            | SolverKind::NewtonProjectedPcg => Values::Iterations,
             SolverKind::PdTol
             | SolverKind::NewtonTol
             | SolverKind::CgTol
@@ -209,7 +226,8 @@ impl SolverKind {
             | SolverKind::NewtonCgAmgTol
             | SolverKind::NewtonRelaxedTol
             | SolverKind::NewtonProjectedTol
-            | SolverKind::NewtonProjectedExactTol => Values::Tolerances,
+            | SolverKind::NewtonProjectedExactTol
+            | SolverKind::NewtonProjectedPcgTol => Values::Tolerances,
             SolverKind::LinearizedCg | SolverKind::LinearizedJacobi => Values::None,
         }
     }
@@ -242,6 +260,8 @@ impl SolverKind {
             SolverKind::NewtonProjectedTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
             SolverKind::NewtonProjectedExact => iterations(&[1, 2, 3, 5, 10]),
             SolverKind::NewtonProjectedExactTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
+            SolverKind::NewtonProjectedPcg => iterations(&[1, 2, 3, 5, 10]),
+            SolverKind::NewtonProjectedPcgTol => tolerances(&[1e-2, 1e-4, 1e-6, 1e-8]),
         }
     }
 }
