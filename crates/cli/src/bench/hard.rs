@@ -70,7 +70,11 @@ pub const HARD_INTEGRATORS: &[&str] = &[
 
 /// Integrators [`hard_case_settings`] also accepts, by `--hard-integrator NAME` only (not in the
 /// default matrix): Newton under the projected indefinite policies (docs/solvers.md §3.2).
-pub const HARD_OPT_IN_INTEGRATORS: &[&str] = &["newton-projected", "newton-projected-exact"];
+pub const HARD_OPT_IN_INTEGRATORS: &[&str] = &[
+    "newton-projected",
+    "newton-projected-exact",
+    "newton-projected-pcg",
+];
 
 /// The settings [`hard_case_settings`] changes from the library's defaults ([`Settings::default`]
 /// with the integrator chosen), printed with the matrix ([`crate::bench::format_hard_cases`]).
@@ -79,7 +83,8 @@ pub const HARD_CASE_OVERRIDES: &str = "settings: the library's defaults, except:
      which the run is refused); newton-relaxed is newton with the opt-in buckling relaxation \
      (`hooke run --relaxation buckling`); newton-projected (by name only) is newton factoring \
      the Hessian made positive definite spring by spring (docs/solvers.md §3.2), \
-     newton-projected-exact the same with the exact Hessian after full steps";
+     newton-projected-exact the same with the exact Hessian after full steps, \
+     newton-projected-pcg the exact system by CG on the definite Hessian's factor";
 
 /// How [`hard_cases`] runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -384,6 +389,14 @@ pub fn hard_case_settings(
             integrator: Integrator::Newton,
             newton: NewtonParams {
                 indefinite: crate::solvers::IndefinitePolicy::ProjectedThenExact,
+                ..NewtonParams::default()
+            },
+            ..Settings::default()
+        },
+        "newton-projected-pcg" => Settings {
+            integrator: Integrator::Newton,
+            newton: NewtonParams {
+                indefinite: crate::solvers::IndefinitePolicy::ProjectedPreconditioned,
                 ..NewtonParams::default()
             },
             ..Settings::default()
