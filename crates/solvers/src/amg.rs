@@ -732,8 +732,8 @@ pub struct Amg {
     /// Scratch of the product numerics, one per rayon thread (grown when the pool is larger than
     /// at the last fill), each `largest × widest` long.
     dense: Vec<Vec<f64>>,
-    /// The largest column count of the products, and the largest block (the scratch length is
-    /// their product).
+    /// The largest column count of the products (the largest coarse level) and the largest block:
+    /// the scratch length is their product.
     largest: usize,
     widest: usize,
     /// The given matrix' stored entries (its pattern check in [`Amg::refresh`]).
@@ -847,7 +847,9 @@ impl Amg {
                 next = coarsen(level, &nullspace, k, params.strength_threshold);
             }
         }
-        let largest = levels.iter().map(|l| l.a.n_cols).max().unwrap_or(0);
+        // The products' right factors (T, P, A P) have a coarse level's columns; their left
+        // factors' row blocks are any level's blocks.
+        let largest = levels[1..].iter().map(|l| l.a.n_rows).max().unwrap_or(0);
         let widest = levels
             .iter()
             .flat_map(|l| l.block_ptr.windows(2).map(|w| w[1] - w[0]))
