@@ -426,7 +426,9 @@ fn coarsen(
         r_uniform,
         ap,
         next: vec![0; coarse_size],
-        power: [vec![0.0; size], vec![0.0; size]],
+        // Allocated by the first fill that needs them (the finest level's come from its ρ
+        // computed beside this set-up).
+        power: [Vec::new(), Vec::new()],
     };
     Some((transfer, Level::new(coarse_a, coarse_ptr), coarse_nullspace))
 }
@@ -714,7 +716,8 @@ struct Transfer {
     /// Per coarse unknown, the next entry of its row: scratch of the transpositions in
     /// [`Amg::fill`] (P's values into R, the coarse matrix' symmetrisation).
     next: Vec<usize>,
-    /// Scratch for the spectral radius: two vectors of the level's size.
+    /// Scratch for the spectral radius: two vectors of the level's size (empty until the first
+    /// fill).
     power: [Vec<f64>; 2],
 }
 
@@ -963,6 +966,9 @@ impl Amg {
                 continue;
             };
             let mut power = std::mem::take(&mut tr.power);
+            for v in &mut power {
+                v.resize(level.a.n_rows, 0.0);
+            }
             let rho = known_rho.unwrap_or_else(|| spectral_radius(level, &mut power, iterations));
             let omega = omega_scale / rho;
             let tr = level.transfer.as_mut().expect("checked");
