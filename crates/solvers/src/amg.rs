@@ -537,6 +537,8 @@ fn product_values(
                     }
                     let cols = &col[ptr[row]..ptr[row + 1]];
                     for r in 0..k {
+                        // Rows of A of one pattern have one pattern in C (product_pattern).
+                        debug_assert_eq!(ptr[row + r + 1] - ptr[row + r], cols.len());
                         let out = &mut values[ptr[row + r] - base..ptr[row + r + 1] - base];
                         for (o, &j) in out.iter_mut().zip(cols) {
                             let d = &mut dense[j as usize * k + r];
