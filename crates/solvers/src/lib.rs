@@ -93,6 +93,7 @@ pub use operator::{BlockJacobi, Identity, LinearOperator, Preconditioner, Symmet
 pub use params::{ParamError, MAX_THREADS};
 pub use projective::{
     FixedPointError, GlobalSolveKind, PdContactModel, PdError, PdMultilevelParams, PdParams,
-    PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT, MULTILEVEL_PD_UNKNOWNS,
+    PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT, MULTILEVEL_PD_FILL,
+    MULTILEVEL_PD_UNKNOWNS,
 };
 pub use report::{Report, SolveError, SolveSummary, StopReason};

@@ -21,7 +21,7 @@ mod global;
 pub use contact::{PdContactModel, DEFAULT_CONTACT_WEIGHT};
 pub(crate) use global::GlobalSolve;
 use global::{DirectSolve, MultilevelSolve};
-pub use global::{GlobalSolveKind, PdMultilevelParams, MULTILEVEL_PD_UNKNOWNS};
+pub use global::{GlobalSolveKind, PdMultilevelParams, MULTILEVEL_PD_FILL, MULTILEVEL_PD_UNKNOWNS};
 
 use crate::amg::AmgError;
 use crate::backward_euler::spring_energy_change;
@@ -63,6 +63,12 @@ impl PdParams {
             "at least 1",
         )?;
         params::non_negative("PdParams::tolerance", self.tolerance)?;
+        params::real(
+            "PdParams::multilevel_fill",
+            self.multilevel_fill,
+            self.multilevel_fill > 0.0,
+            "positive (+∞: by size and memory budget only)",
+        )?;
         self.multilevel.validate()?;
         self.cholesky.validate()
     }
@@ -94,6 +100,12 @@ pub struct PdParams {
     /// How the global step is solved: by the prefactored matrix or on the multilevel path.
     /// Default [`GlobalSolveKind::Auto`] ([`ProjectiveDynamics::global_solve_for`]).
     pub global_solve: GlobalSolveKind,
+    /// Under [`GlobalSolveKind::Auto`], take the multilevel path also when the factor of the
+    /// global matrix would hold more than this many times the matrix' stored entries (the
+    /// factor's lower triangle against the matrix' full pattern), decided after the symbolic
+    /// analysis, before the factor is allocated. Default [`MULTILEVEL_PD_FILL`]; `f64::INFINITY`:
+    /// by size and memory budget only.
+    pub multilevel_fill: f64,
     /// The multilevel path's settings.
     pub multilevel: PdMultilevelParams,
     /// Factorisation settings of the direct path. [`FactorKind::Auto`] picks by size for the
@@ -109,6 +121,7 @@ impl Default for PdParams {
             record_objective: false,
             parallel: true,
             global_solve: GlobalSolveKind::Auto,
+            multilevel_fill: MULTILEVEL_PD_FILL,
             multilevel: PdMultilevelParams::default(),
             // A supernodal factor's columns split over two threads (the same bits as serial;
             // 1.28× on cloth-320's solve): `parallel: false` solves them on one.
@@ -195,6 +208,14 @@ impl<const D: usize> ProjectiveDynamics<D> {
         let global = match kind {
             GlobalSolveKind::Multilevel => multilevel(),
             _ => match SparseCholesky::analyze(pattern.symbolic(), cholesky_params) {
+                // A filled solid's factor: the multilevel path is the faster one.
+                Ok(cholesky)
+                    if params.global_solve == GlobalSolveKind::Auto
+                        && cholesky.factor_nnz() as f64
+                            > params.multilevel_fill * pattern.symbolic().compute_nnz() as f64 =>
+                {
+                    multilevel()
+                }
                 Ok(cholesky) => GlobalSolve::Direct(Box::new(DirectSolve::new(cholesky))),
                 // Over the memory budget, Auto takes the path that needs no factor.
                 Err(CholeskyError::OverBudget { .. })
@@ -228,8 +249,9 @@ impl<const D: usize> ProjectiveDynamics<D> {
     }
 
     /// The global solve [`GlobalSolveKind::Auto`] takes for `unknowns` free vertices (if the
-    /// factor fits in the memory budget): [`GlobalSolveKind::Multilevel`] above
-    /// [`MULTILEVEL_PD_UNKNOWNS`], [`GlobalSolveKind::Direct`] otherwise.
+    /// factor fits in the memory budget and fills at most [`PdParams::multilevel_fill`] times the
+    /// matrix): [`GlobalSolveKind::Multilevel`] above [`MULTILEVEL_PD_UNKNOWNS`],
+    /// [`GlobalSolveKind::Direct`] otherwise.
     pub fn global_solve_for(unknowns: usize) -> GlobalSolveKind {
         if unknowns > MULTILEVEL_PD_UNKNOWNS {
             GlobalSolveKind::Multilevel

@@ -73,6 +73,14 @@ impl std::str::FromStr for GlobalSolveKind {
 /// simplicial to a supernodal factor.
 pub const MULTILEVEL_PD_UNKNOWNS: usize = 50_000;
 
+/// The default [`crate::PdParams::multilevel_fill`]: 7. Measured on this project's 2-core machine
+/// (docs/solvers.md §6.1): PD's factor fills 2–6 times its matrix on cloth and the beams up to
+/// beam-8, where the factor's solves are as fast or faster (beam-8, fill 5.9: PD-10 5.5 ms against
+/// 6.4 ms), and 8–19 times on the filled solids, where the multilevel path is the faster one
+/// (bunny-drop, fill 8.1: 2× for the run; beam-16, fill 18: 2.9× per step and a set-up of 16 ms
+/// against a 1.5 s factorisation).
+pub const MULTILEVEL_PD_FILL: f64 = 7.0;
+
 /// Settings of the multilevel global step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PdMultilevelParams {

@@ -238,6 +238,49 @@ fn auto_takes_the_multilevel_path_by_size_and_over_the_budget() {
     );
 }
 
+/// Auto takes the multilevel path when the factor fills more than `multilevel_fill` times the
+/// matrix: a cloth (fill about 3) stays on its factor, a filled solid (beam-12, fill above 7)
+/// goes multilevel, and a bound of +∞ or a global solve named outright decides by itself.
+#[test]
+fn auto_takes_the_multilevel_path_for_a_filling_factor() {
+    let cloth = generators::cloth(12, 1e3).unwrap();
+    let with_fill = |multilevel_fill| PdParams {
+        multilevel_fill,
+        ..PdParams::default()
+    };
+    assert_eq!(
+        pd(&cloth, &[0, 11], PdParams::default()).global_solve(),
+        GlobalSolveKind::Direct
+    );
+    assert_eq!(
+        pd(&cloth, &[0, 11], with_fill(1.0)).global_solve(),
+        GlobalSolveKind::Multilevel
+    );
+    let beam = generators::beam(12).unwrap();
+    let pinned = waved_step::clamped(&beam);
+    assert_eq!(
+        pd(&beam, &pinned, PdParams::default()).global_solve(),
+        GlobalSolveKind::Multilevel
+    );
+    assert_eq!(
+        pd(&beam, &pinned, with_fill(f64::INFINITY)).global_solve(),
+        GlobalSolveKind::Direct
+    );
+    let direct = PdParams {
+        global_solve: GlobalSolveKind::Direct,
+        ..with_fill(1.0)
+    };
+    assert_eq!(
+        pd(&cloth, &[0, 11], direct).global_solve(),
+        GlobalSolveKind::Direct
+    );
+    let refused = PdParams {
+        multilevel_fill: 0.0,
+        ..PdParams::default()
+    };
+    assert!(refused.validate().is_err());
+}
+
 /// A free component with zero mass and no pin makes the matrix singular: a typed error from the
 /// hierarchy's set-up, not a panic or NaN.
 #[test]
