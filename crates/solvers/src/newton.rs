@@ -873,6 +873,10 @@ pub struct NewtonReport {
     pub refused_reuses: usize,
     /// CG iterations on held factors in all (each one solve with the factor), converged or not.
     pub reuse_iterations: usize,
+    /// CG iterations on the exact Newton systems under
+    /// [`IndefinitePolicy::ProjectedPreconditioned`], in all (each one solve with the definite
+    /// Hessian's factor and one product with the exact Hessian).
+    pub exact_cg_iterations: usize,
     /// Relaxation sweeps over all blocks, in all ([`NewtonParams::relaxation`]).
     pub relaxation_sweeps: usize,
     /// Relaxations skipped after a trusted exact Newton step ([`Relaxation::trusted_model`]).
@@ -925,6 +929,7 @@ impl NewtonReport {
             reused_factors: 0,
             refused_reuses: 0,
             reuse_iterations: 0,
+            exact_cg_iterations: 0,
             relaxation_sweeps: 0,
             skipped_relaxations: 0,
             focused_sweeps: 0,
@@ -1478,7 +1483,7 @@ impl Newton {
                 None => 0,
             },
         };
-        report.reuse_iterations += iterations;
+        report.exact_cg_iterations += iterations;
         for attempt in 0..2 {
             if attempt == 1 || iterations == 0 {
                 // The definite matrix's own Newton step.

@@ -442,13 +442,19 @@ impl Runner {
                         report.region_factorizations
                     )
                 });
-                let cg = (report.reuse_iterations > 0).then(|| {
+                let reuse = (report.reuse_iterations > 0).then(|| {
                     format!(
-                        "{} CG iteration(s) on a held or definite factor",
+                        "{} CG iteration(s) on a held factor",
                         report.reuse_iterations
                     )
                 });
-                let note = [note, shifted, cg, regions]
+                let exact_cg = (report.exact_cg_iterations > 0).then(|| {
+                    format!(
+                        "{} CG iteration(s) on the definite factor",
+                        report.exact_cg_iterations
+                    )
+                });
+                let note = [note, shifted, reuse, exact_cg, regions]
                     .into_iter()
                     .flatten()
                     .reduce(|a, b| format!("{a}; {b}"));

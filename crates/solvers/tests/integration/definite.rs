@@ -422,6 +422,8 @@ fn a_compressed_cloth_needs_no_failed_factorisation() {
     );
     assert_eq!(preconditioned.failed_factorizations, 0);
     assert_eq!(preconditioned.factorizations, preconditioned.iterations);
+    assert!(preconditioned.exact_cg_iterations > 0);
+    assert_eq!(projected.exact_cg_iterations + blend.exact_cg_iterations, 0);
     let mut previous = preconditioned.initial_objective;
     for it in &preconditioned.history {
         assert!(it.objective <= previous);
