@@ -335,6 +335,36 @@ impl Csr {
         v
     }
 
+    /// [`Csr::rows_side_by_side`] for the `out.len()` rows from row `lo` (of one pattern) into
+    /// `out`, from `init(r)` for row `lo + r`: `true` for a block of 3 or 6 rows, `false` (nothing
+    /// written) for another size.
+    #[inline(always)]
+    fn block_side_by_side<const SUBTRACT: bool, T: Lane>(
+        &self,
+        lo: usize,
+        width: usize,
+        read: impl Fn(usize) -> T,
+        init: impl Fn(usize) -> T,
+        out: &mut [T],
+    ) -> bool {
+        match out.len() {
+            3 => out.copy_from_slice(&self.rows_side_by_side::<3, SUBTRACT, T>(
+                lo,
+                width,
+                read,
+                std::array::from_fn(init),
+            )),
+            6 => out.copy_from_slice(&self.rows_side_by_side::<6, SUBTRACT, T>(
+                lo,
+                width,
+                read,
+                std::array::from_fn(init),
+            )),
+            _ => return false,
+        }
+        true
+    }
+
     /// `out = b − A x` (`SUBTRACT`) or `out = A x` (`b` unused) over the row blocks `blocks`
     /// (bounds), blocks of 3 or 6 rows side by side when `uniform` (every block's rows have one
     /// pattern); halves of many blocks in parallel. Each row a serial sum in
@@ -365,32 +395,21 @@ impl Csr {
             let (lo, hi) = (w[0], w[1]);
             let width = self.ptr[lo + 1] - self.ptr[lo];
             let out = &mut out[lo - base..hi - base];
-            match (uniform, hi - lo) {
-                (true, 3) => out.copy_from_slice(&self.rows_side_by_side::<3, SUBTRACT, T>(
-                    lo,
-                    width,
-                    read,
-                    std::array::from_fn(|r| init(lo + r)),
-                )),
-                (true, 6) => out.copy_from_slice(&self.rows_side_by_side::<6, SUBTRACT, T>(
-                    lo,
-                    width,
-                    read,
-                    std::array::from_fn(|r| init(lo + r)),
-                )),
-                _ => {
-                    for (i, o) in (lo..hi).zip(out.iter_mut()) {
-                        let mut v = init(i);
-                        for e in self.row(i) {
-                            if SUBTRACT {
-                                v -= x[self.col[e] as usize] * self.val[e];
-                            } else {
-                                v += x[self.col[e] as usize] * self.val[e];
-                            }
-                        }
-                        *o = v;
+            if uniform
+                && self.block_side_by_side::<SUBTRACT, T>(lo, width, read, |r| init(lo + r), out)
+            {
+                continue;
+            }
+            for (i, o) in (lo..hi).zip(out.iter_mut()) {
+                let mut v = init(i);
+                for e in self.row(i) {
+                    if SUBTRACT {
+                        v -= x[self.col[e] as usize] * self.val[e];
+                    } else {
+                        v += x[self.col[e] as usize] * self.val[e];
                     }
                 }
+                *o = v;
             }
         }
     }
@@ -1390,21 +1409,16 @@ impl Level {
                     cols.len()
                 }
             };
-            let init = |r: usize| b[lo + r];
-            match (self.uniform_rows, k) {
-                (true, 3) => s[..3].copy_from_slice(&self.a.rows_side_by_side::<3, true, T>(
+            let side_by_side = self.uniform_rows
+                && self.a.block_side_by_side::<true, T>(
                     lo,
                     width(),
                     read,
-                    std::array::from_fn(init),
-                )),
-                (true, 6) => s[..6].copy_from_slice(&self.a.rows_side_by_side::<6, true, T>(
-                    lo,
-                    width(),
-                    read,
-                    std::array::from_fn(init),
-                )),
-                _ => self.rows_one_by_one(lo, hi, b, read, from_zero, &mut s),
+                    |r| b[lo + r],
+                    &mut s[..k],
+                );
+            if !side_by_side {
+                self.rows_one_by_one(lo, hi, b, read, from_zero, &mut s);
             }
             let inv = &self.diag_inv[self.diag_offset[blk]..self.diag_offset[blk] + k * k];
             for i in 0..k {

@@ -1504,6 +1504,19 @@ impl Newton {
         Ok(None)
     }
 
+    /// Why a solve stops when the line search refused a descent direction of a convex model at
+    /// `x`: no step lowers Φ, so either the gradient is round-off ([`StopReason::RoundOff`]: the
+    /// tolerance is below what the arithmetic resolves) or objective and gradient disagree
+    /// ([`StopReason::LineSearchFailed`]).
+    fn refused_search_stop(&self, problem: &mut impl NewtonProblem, x: &[f64]) -> StopReason {
+        let noise = problem.gradient_round_off(x);
+        if dot(&self.g, &self.g).sqrt() <= noise {
+            StopReason::RoundOff
+        } else {
+            StopReason::LineSearchFailed
+        }
+    }
+
     /// Backtracking line search from `x` along the current step, with slope gᵀΔ < 0.
     fn line_search(
         &mut self,
@@ -1676,14 +1689,12 @@ impl Newton {
                         (accepted, 0, slope, small)
                     }
                     None => {
-                        let noise = problem.gradient_round_off(x);
-                        let norm = dot(&self.g, &self.g).sqrt();
-                        if norm <= noise {
-                            finish(report, StopReason::RoundOff);
-                            return Ok(());
-                        }
-                        finish(report, StopReason::LineSearchFailed);
-                        return Err(Failure::LineSearchFailed);
+                        let stop = self.refused_search_stop(problem, x);
+                        finish(report, stop);
+                        return match stop {
+                            StopReason::RoundOff => Ok(()),
+                            _ => Err(Failure::LineSearchFailed),
+                        };
                     }
                 }
             } else {
@@ -1771,17 +1782,12 @@ impl Newton {
                             }
                             if negative == 0 {
                                 report.failed_factorizations += failed;
-                                // A descent direction of a convex model on which no step lowers Φ:
-                                // either the gradient is round-off (the tolerance is below what the
-                                // arithmetic resolves), or objective and gradient disagree.
-                                let noise = problem.gradient_round_off(x);
-                                let norm = dot(&self.g, &self.g).sqrt();
-                                if norm <= noise {
-                                    finish(report, StopReason::RoundOff);
-                                    return Ok(());
-                                }
-                                finish(report, StopReason::LineSearchFailed);
-                                return Err(Failure::LineSearchFailed);
+                                let stop = self.refused_search_stop(problem, x);
+                                finish(report, stop);
+                                return match stop {
+                                    StopReason::RoundOff => Ok(()),
+                                    _ => Err(Failure::LineSearchFailed),
+                                };
                             }
                         }
                         if reused {

@@ -377,30 +377,22 @@ pub fn hard_case_settings(
             },
             ..Settings::default()
         },
-        "newton-projected" => Settings {
-            integrator: Integrator::Newton,
-            newton: NewtonParams {
-                indefinite: crate::solvers::IndefinitePolicy::Projected,
-                ..NewtonParams::default()
-            },
-            ..Settings::default()
-        },
-        "newton-projected-exact" => Settings {
-            integrator: Integrator::Newton,
-            newton: NewtonParams {
-                indefinite: crate::solvers::IndefinitePolicy::ProjectedThenExact,
-                ..NewtonParams::default()
-            },
-            ..Settings::default()
-        },
-        "newton-projected-pcg" => Settings {
-            integrator: Integrator::Newton,
-            newton: NewtonParams {
-                indefinite: crate::solvers::IndefinitePolicy::ProjectedPreconditioned,
-                ..NewtonParams::default()
-            },
-            ..Settings::default()
-        },
+        name @ ("newton-projected" | "newton-projected-exact" | "newton-projected-pcg") => {
+            Settings {
+                integrator: Integrator::Newton,
+                newton: NewtonParams {
+                    indefinite: match name {
+                        "newton-projected" => crate::solvers::IndefinitePolicy::Projected,
+                        "newton-projected-exact" => {
+                            crate::solvers::IndefinitePolicy::ProjectedThenExact
+                        }
+                        _ => crate::solvers::IndefinitePolicy::ProjectedPreconditioned,
+                    },
+                    ..NewtonParams::default()
+                },
+                ..Settings::default()
+            }
+        }
         "pd" => Settings {
             integrator: Integrator::ProjectiveDynamics,
             ..Settings::default()
