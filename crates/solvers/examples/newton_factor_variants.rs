@@ -3,7 +3,8 @@
 //! expanded to each vertex's three DOFs (dense 3 × 3 blocks stay together, so supernodes are at
 //! least three columns wide), each simplicial and supernodal; LDLᵀ and LLᵀ. The matrix is the
 //! Hessian of Φ at y for a step from a cloth swung by one symplectic step (its values do not
-//! change the cost of a factorisation without pivoting).
+//! change the cost of a factorisation without pivoting). Also the time of one solve with the LLᵀ
+//! factor for one right-hand side (what each CG iteration preconditioned by a held factor costs).
 //!
 //! `cargo run --release -p hooke-solvers --example newton_factor_variants -- [N=40] [repeats=7] [threads=1]`
 
@@ -14,11 +15,12 @@ use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    SymmetricOrdering,
 };
 use faer::sparse::linalg::{amd, SupernodalThreshold};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Par, Side};
+use faer::{Conj, MatMut, Par, Side};
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
 use hooke_solvers::{BackwardEulerStep, NewtonProblem};
@@ -96,7 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let block = PermRef::new_checked(&perm, &perm_inv, dim);
 
-    println!("ordering  kind         L values   LDLt ms    LLt ms   analysis ms");
+    println!("ordering  kind         L values   LDLt ms    LLt ms  solve ms   analysis ms");
     for (order_name, ordering) in [("amd-3n", None), ("amd-vertex", Some(block))] {
         for (kind_name, threshold) in [
             ("auto", SupernodalThreshold::AUTO),
@@ -122,7 +124,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut mem = MemBuffer::new(StackReq::any_of(&[
                 symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
                 symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+                symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
             ]));
+            let mut rhs = vec![0.0; dim];
+            let mut solve = Vec::new();
             let mut ldlt = Vec::new();
             let mut llt = Vec::new();
             for _ in 0..repeats {
@@ -156,12 +161,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 } else {
                     f64::NAN
                 });
+                if ok {
+                    rhs.fill(1.0);
+                    let start = Instant::now();
+                    LltRef::new(&symbolic, &l).solve_in_place_with_conj(
+                        Conj::No,
+                        MatMut::from_column_major_slice_mut(&mut rhs, dim, 1),
+                        Par::Seq,
+                        MemStack::new(&mut mem),
+                    );
+                    solve.push(start.elapsed().as_secs_f64() * 1e3);
+                }
             }
             println!(
-                "{order_name:<10}{kind_name:<11}{:>10}{:>10.2}{:>10.2}{:>13.2}",
+                "{order_name:<10}{kind_name:<11}{:>10}{:>10.2}{:>10.2}{:>10.3}{:>13.2}",
                 symbolic.len_val(),
                 median(ldlt),
                 median(llt),
+                if solve.is_empty() {
+                    f64::NAN
+                } else {
+                    median(solve)
+                },
                 analysis
             );
         }
