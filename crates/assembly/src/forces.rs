@@ -170,16 +170,28 @@ impl<const D: usize> SpringForces<D> {
 /// path computes the chunk sums in batches of `SUM_BATCH` (64) into an array on the stack and adds
 /// each batch to the total in order, which is the serial order of additions.
 pub fn deterministic_sum(count: usize, parallel: bool, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+    deterministic_sum_lanes(count, parallel, |i| SVector::<f64, 1>::new(term(i)))[0]
+}
+
+/// [`deterministic_sum`] of D sums at once, in one pass over the terms (D dot products of the
+/// same vectors, say): each lane's additions are those of [`deterministic_sum`] over that lane's
+/// terms, in the same order, so each lane has its bits.
+pub fn deterministic_sum_lanes<const D: usize>(
+    count: usize,
+    parallel: bool,
+    term: impl Fn(usize) -> SVector<f64, D> + Sync,
+) -> SVector<f64, D> {
+    // `Iterator::sum` of f64 folds from -0.0; so does every sum here, so that an empty or
+    // all-(-0.0) sum has the bits of the serial f64 sum.
+    let negative_zero = SVector::<f64, D>::repeat(-0.0);
     let chunk_sum = |c: usize| {
         let end = ((c + 1) * CHUNK).min(count);
-        (c * CHUNK..end).map(&term).sum::<f64>()
+        (c * CHUNK..end).fold(negative_zero, |sum, i| sum + term(i))
     };
     let chunks = count.div_ceil(CHUNK);
     if parallel && count >= PARALLEL_THRESHOLD {
-        // The serial path's `Iterator::sum` folds from -0.0; so does this, so that both give the
-        // same bits (an empty or all-(-0.0) sum included).
-        let mut total = -0.0;
-        let mut partial = [0.0; SUM_BATCH];
+        let mut total = negative_zero;
+        let mut partial = [negative_zero; SUM_BATCH];
         for first in (0..chunks).step_by(SUM_BATCH) {
             let batch = &mut partial[..SUM_BATCH.min(chunks - first)];
             batch
@@ -192,7 +204,9 @@ pub fn deterministic_sum(count: usize, parallel: bool, term: impl Fn(usize) -> f
         }
         total
     } else {
-        (0..chunks).map(chunk_sum).sum()
+        (0..chunks)
+            .map(chunk_sum)
+            .fold(negative_zero, |sum, c| sum + c)
     }
 }
 
@@ -265,6 +279,57 @@ mod tests {
             spring_energy(mesh.springs(), &x, false).to_bits(),
             spring_energy(mesh.springs(), &x, true).to_bits()
         );
+    }
+
+    /// The documented order written out: chunks of `CHUNK` terms summed serially from -0.0, then
+    /// the chunk sums in order.
+    fn chunked_sum(count: usize, term: impl Fn(usize) -> f64) -> f64 {
+        (0..count.div_ceil(CHUNK))
+            .map(|c| {
+                (c * CHUNK..((c + 1) * CHUNK).min(count))
+                    .map(&term)
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
+    #[test]
+    fn lane_sums_have_the_bits_of_the_chunked_sum_of_each_lane() {
+        // Terms of mixed sign and magnitude, so that any other order of additions shows in the
+        // bits; counts below one chunk, below the parallel threshold, and over several batches.
+        let term = |i: usize| {
+            let t = i as f64;
+            Vector3::new(
+                (t * 0.37).sin() * 1e8_f64.powf((t * 0.013).cos()),
+                1.0 / (1.0 + t) - 0.5 * (t * 0.71).cos(),
+                if i % 3 == 0 {
+                    -0.0
+                } else {
+                    (t * 1.3).sin() * 1e-9
+                },
+            )
+        };
+        let batches = 3 * SUM_BATCH * CHUNK + 77;
+        for count in [0, 7, CHUNK + 3, PARALLEL_THRESHOLD + 5_000, batches] {
+            for parallel in [false, true] {
+                let lanes = deterministic_sum_lanes(count, parallel, term);
+                for a in 0..3 {
+                    let expected = chunked_sum(count, |i| term(i)[a]);
+                    assert_eq!(
+                        lanes[a].to_bits(),
+                        expected.to_bits(),
+                        "lane {a}, {count} terms, parallel {parallel}"
+                    );
+                    assert_eq!(
+                        deterministic_sum(count, parallel, |i| term(i)[a]).to_bits(),
+                        expected.to_bits()
+                    );
+                }
+            }
+        }
+        // A sum of nothing, or of negative zeros only, is -0.0 as f64's own sum is.
+        let zeros = deterministic_sum_lanes(3 * CHUNK, true, |_| Vector3::repeat(-0.0));
+        assert!(zeros.iter().all(|z| z.to_bits() == (-0.0f64).to_bits()));
     }
 
     #[test]

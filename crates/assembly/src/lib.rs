@@ -34,5 +34,8 @@ pub use error::AssemblyError;
 pub use hessian::{HessianParams, HessianPattern, HessianWorkspace};
 pub use pd::LaplacianPattern;
 
-pub use forces::{deterministic_sum, max_stretch, spring_energy, Dashpot, Incidence, SpringForces};
+pub use forces::{
+    deterministic_sum, deterministic_sum_lanes, max_stretch, spring_energy, Dashpot, Incidence,
+    SpringForces,
+};
 pub use spring::Definiteness;

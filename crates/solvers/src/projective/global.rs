@@ -439,7 +439,8 @@ impl<const D: usize> MultilevelSolve<D> {
     }
 }
 
-/// Per column a, Σ_i u_i[a] v_i[a], each a deterministic sum (the same bits on any thread count).
+/// Per column a, Σ_i u_i[a] v_i[a], each a deterministic sum (the same bits on any thread count),
+/// all D in one pass over u and v.
 fn column_dots<const D: usize>(u: &[SVector<f64, D>], v: &[SVector<f64, D>]) -> SVector<f64, D> {
-    SVector::from_fn(|a, _| hooke_assembly::deterministic_sum(u.len(), true, |i| u[i][a] * v[i][a]))
+    hooke_assembly::deterministic_sum_lanes(u.len(), true, |i| u[i].component_mul(&v[i]))
 }
