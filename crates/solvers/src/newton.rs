@@ -1220,6 +1220,52 @@ impl Newton {
         self.reuse_backoff = 0;
     }
 
+    /// Solve `self.shifted` Δ = −∇Φ (the matrix on `pattern`) into `self.step` by CG from zero,
+    /// preconditioned with the held factor, to a relative residual of `tolerance` in at most
+    /// `max_iterations`, giving up where `give_up(k, residual)` says so. Returns the iterations
+    /// made and whether CG converged; `self.cg_report` keeps its history either way, so that the
+    /// next solve allocates nothing.
+    fn cg_on_held_factor(
+        &mut self,
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        tolerance: f64,
+        max_iterations: usize,
+        give_up: impl Fn(usize, f64) -> bool,
+    ) -> (usize, bool) {
+        for (b, g) in self.rhs.iter_mut().zip(&self.g) {
+            *b = -g;
+        }
+        self.step.fill(0.0);
+        self.cg.params = CgParams {
+            tolerance,
+            max_iterations,
+        };
+        let matrix = Symmetric(SparseColMatRef::new(pattern, &self.shifted));
+        let solved = self.cg.solve_into(
+            &matrix,
+            &mut self.cholesky,
+            &self.rhs,
+            &mut self.step,
+            &mut self.cg_report,
+            give_up,
+        );
+        match solved {
+            Ok(()) => (
+                self.cg_report.iterations,
+                self.cg_report.stop.is_converged(),
+            ),
+            Err(e) => match e.into_report() {
+                // The history moved into the error: take it back.
+                Some(failed) => {
+                    let iterations = failed.iterations;
+                    self.cg_report = failed;
+                    (iterations, false)
+                }
+                None => (0, false),
+            },
+        }
+    }
+
     /// Solve the Newton system of the current shift (see [`Newton::regularize`]) into `step` by CG
     /// preconditioned with the held LLᵀ factor ([`NewtonParams::factor_reuse`]), counting it in
     /// `report`. `true` if CG converged; otherwise `step` is garbage and the matrix must be
@@ -1240,44 +1286,17 @@ impl Newton {
             return false;
         }
         self.regularize(problem, x, policy);
-        for (b, g) in self.rhs.iter_mut().zip(&self.g) {
-            *b = -g;
-        }
-        self.step.fill(0.0);
-        self.cg.params = CgParams {
-            tolerance: reuse.tolerance,
-            max_iterations: reuse.max_iterations,
-        };
-        let matrix = Symmetric(SparseColMatRef::new(problem.pattern(), &self.shifted));
         // Off the geometric track that reaches the tolerance within the allowed iterations: the
         // matrix has moved too far from the factor's, and further solves with it would be wasted.
         let track = |k: usize, residual: f64| {
             residual > reuse.tolerance.powf(k as f64 / reuse.max_iterations as f64)
         };
-        let solved = self.cg.solve_into(
-            &matrix,
-            &mut self.cholesky,
-            &self.rhs,
-            &mut self.step,
-            &mut self.cg_report,
+        let (iterations, converged) = self.cg_on_held_factor(
+            problem.pattern(),
+            reuse.tolerance,
+            reuse.max_iterations,
             track,
         );
-        let (iterations, converged) = match solved {
-            Ok(()) => (
-                self.cg_report.iterations,
-                self.cg_report.stop.is_converged(),
-            ),
-            Err(e) => match e.into_report() {
-                // The history moved into the error: take it back, so that the next reuse
-                // allocates nothing.
-                Some(failed) => {
-                    let iterations = failed.iterations;
-                    self.cg_report = failed;
-                    (iterations, false)
-                }
-                None => (0, false),
-            },
-        };
         report.reuse_iterations += iterations;
         if converged {
             report.reused_factors += 1;
@@ -1455,34 +1474,12 @@ impl Newton {
         }
         report.failed_factorizations += failed;
         self.shifted.copy_from_slice(problem.hessian(x).val());
-        for (b, g) in self.rhs.iter_mut().zip(&self.g) {
-            *b = -g;
-        }
-        self.step.fill(0.0);
-        self.cg.params = CgParams {
-            tolerance: gradient.clamp(1e-12, 0.1),
-            max_iterations: PRECONDITIONED_CG_ITERATIONS,
-        };
-        let matrix = Symmetric(SparseColMatRef::new(problem.pattern(), &self.shifted));
-        let solved = self.cg.solve_into(
-            &matrix,
-            &mut self.cholesky,
-            &self.rhs,
-            &mut self.step,
-            &mut self.cg_report,
+        let (iterations, _) = self.cg_on_held_factor(
+            problem.pattern(),
+            gradient.clamp(1e-12, 0.1),
+            PRECONDITIONED_CG_ITERATIONS,
             |_, _| false,
         );
-        let iterations = match solved {
-            Ok(()) => self.cg_report.iterations,
-            Err(e) => match e.into_report() {
-                Some(failed) => {
-                    let iterations = failed.iterations;
-                    self.cg_report = failed;
-                    iterations
-                }
-                None => 0,
-            },
-        };
         report.exact_cg_iterations += iterations;
         for attempt in 0..2 {
             if attempt == 1 || iterations == 0 {
