@@ -4,7 +4,9 @@
 //! algebra. This crate is a thin facade over the workspace's crates, one module each:
 //!
 //! - [`mesh`]: triangle and tetrahedral meshes, spring graphs, lumped masses, generators, mesh files;
-//! - [`assembly`]: spring energies, forces and their derivatives;
+//! - [`collision`]: distances between a surface's primitives with their derivatives, the broad
+//!   phase and continuous collision detection, under self-contact;
+//! - [`assembly`]: spring energies, forces and their derivatives, contact barriers;
 //! - [`solvers`]: linear and nonlinear solvers;
 //! - [`sim`]: scenes, forces, damping, contact and time integration;
 //! - [`sph`]: weakly compressible SPH fluids, independent of the spring crates.
@@ -24,6 +26,7 @@
 pub use nalgebra;
 
 pub use hooke_assembly as assembly;
+pub use hooke_collision as collision;
 pub use hooke_mesh as mesh;
 pub use hooke_sim as sim;
 pub use hooke_solvers as solvers;

@@ -34,6 +34,9 @@ fn scenes_lists_the_canonical_scenes() {
         "cloth-fall-20",
         "cloth-fall-40",
         "cloth-fall-80",
+        "cloth-twist-20",
+        "cloth-twist-40",
+        "cloth-twist-80",
     ] {
         assert!(
             text.lines().any(|l| l.starts_with(name)),
@@ -125,6 +128,52 @@ fn run_writes_frames_summary_and_preview() {
         frames,
         ["frame_0000.vtk", "frame_0001.vtk", "frame_0002.vtk"]
     );
+}
+
+/// cloth-twist-N runs by name: two frames of the 10×10 twist, the turning edge 12° round after
+/// 2/30 s (180°/s): its corner (1, 0, 1), 0.5 m from the axis y = 0, z = 0.5, is at
+/// (1, −0.5 sin 12°, 0.5 + 0.5 cos 12°) in the last frame (which keeps every digit), to
+/// round-off of the 1 m cloth.
+#[test]
+fn run_turns_the_twisted_cloth() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().to_str().unwrap();
+    let out = hooke(&[
+        "run",
+        "cloth-twist-10",
+        "--steps",
+        "2",
+        "--out",
+        out_dir,
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["scene"], "cloth-twist-10");
+    let frame = std::fs::read_to_string(dir.path().join("frames/frame_0002.obj")).unwrap();
+    let corner: Vec<f64> = frame
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .nth(99)
+        .unwrap()
+        .split_whitespace()
+        .skip(1)
+        .map(|c| c.parse().unwrap())
+        .collect();
+    let angle = 12f64.to_radians();
+    let expected = [1.0, -0.5 * angle.sin(), 0.5 + 0.5 * angle.cos()];
+    for (axis, (got, want)) in corner.iter().zip(expected).enumerate() {
+        assert!(
+            (got - want).abs() < 1e-12,
+            "axis {axis}: {got} against {want}"
+        );
+    }
 }
 
 #[test]

@@ -23,5 +23,6 @@ mod pin_methods;
 mod readme_examples;
 mod resume;
 mod scenes;
+mod self_contact;
 mod sph_cli;
 mod tetrahedralize_cli;

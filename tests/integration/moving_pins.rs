@@ -108,10 +108,12 @@ fn pinned_edge_follows_its_path_under_every_integrator_and_pd_keeps_its_factor()
         Keyframe {
             time: 0.0,
             offset: Vector3::zeros(),
+            rotation: None,
         },
         Keyframe {
             time: 0.5,
             offset: Vector3::new(0.15, 0.0, 0.0),
+            rotation: None,
         },
     ]);
     for integrator in Integrator::ALL.iter().copied() {

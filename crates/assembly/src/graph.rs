@@ -60,6 +60,22 @@ impl BlockGraph {
     /// twice the same end.
     #[track_caller]
     pub fn new(vertex_count: usize, springs: &[Spring], free: &FreeDofs) -> Self {
+        Self::with_links(vertex_count, springs, &[], free)
+    }
+
+    /// [`BlockGraph::new`] with extra blocks: one for every pair of free vertices in `links`
+    /// (vertex indices; pairs with a pinned or repeated end add nothing), with no contribution of
+    /// their own. For terms that couple vertices no spring joins (self-contact pairs).
+    ///
+    /// # Panics
+    /// As [`BlockGraph::new`], and if a link has an end out of range.
+    #[track_caller]
+    pub fn with_links(
+        vertex_count: usize,
+        springs: &[Spring],
+        links: &[[u32; 2]],
+        free: &FreeDofs,
+    ) -> Self {
         assert_eq!(
             free.vertex_count(),
             vertex_count,
@@ -113,6 +129,38 @@ impl BlockGraph {
             }
         }
         drop(fill);
+        // The links' other ends per free column (free indices), both directions.
+        let mut link_offsets = vec![0usize; n_free + 1];
+        for &[a, b] in links {
+            assert!(
+                (a as usize) < vertex_count && (b as usize) < vertex_count,
+                "link ({a}, {b}) has an end out of range (vertex count {vertex_count})"
+            );
+            if let (Some(fa), Some(fb)) = (free.free_index(a as usize), free.free_index(b as usize))
+            {
+                if fa != fb {
+                    link_offsets[fa + 1] += 1;
+                    link_offsets[fb + 1] += 1;
+                }
+            }
+        }
+        for f in 0..n_free {
+            link_offsets[f + 1] += link_offsets[f];
+        }
+        let mut link_rows = vec![0u32; link_offsets[n_free]];
+        let mut link_fill = link_offsets.clone();
+        for &[a, b] in links {
+            if let (Some(fa), Some(fb)) = (free.free_index(a as usize), free.free_index(b as usize))
+            {
+                if fa != fb {
+                    link_rows[link_fill[fa]] = fb as u32;
+                    link_fill[fa] += 1;
+                    link_rows[link_fill[fb]] = fa as u32;
+                    link_fill[fb] += 1;
+                }
+            }
+        }
+        drop(link_fill);
         // Leaves: contiguous column ranges, by halving down to a limit fixed by the size alone.
         let mut leaves = vec![0];
         split_leaves(
@@ -138,6 +186,8 @@ impl BlockGraph {
                     .filter(|c| c.slot != Contribution::PINNED_OTHER)
                     .map(|c| c.slot),
             );
+            block_rows
+                .extend_from_slice(&link_rows[link_offsets[column]..link_offsets[column + 1]]);
             block_rows[start..].sort_unstable();
             let mut unique = start;
             for k in start..block_rows.len() {
@@ -396,6 +446,30 @@ pub(crate) fn block_pattern<const D: usize>(
     let graph = match free {
         Some(free) => BlockGraph::new(vertex_count, springs, free),
         None => BlockGraph::new(vertex_count, springs, &FreeDofs::all_free(vertex_count)),
+    };
+    let symbolic = graph.symbolic::<D>();
+    (graph, symbolic)
+}
+
+/// [`block_pattern`] with the extra blocks of `links` ([`BlockGraph::with_links`]).
+///
+/// # Panics
+/// As [`BlockGraph::with_links`].
+#[track_caller]
+pub(crate) fn block_pattern_with_links<const D: usize>(
+    vertex_count: usize,
+    springs: &[Spring],
+    links: &[[u32; 2]],
+    free: Option<&FreeDofs>,
+) -> (BlockGraph, SymbolicSparseColMat<usize>) {
+    let graph = match free {
+        Some(free) => BlockGraph::with_links(vertex_count, springs, links, free),
+        None => BlockGraph::with_links(
+            vertex_count,
+            springs,
+            links,
+            &FreeDofs::all_free(vertex_count),
+        ),
     };
     let symbolic = graph.symbolic::<D>();
     (graph, symbolic)

@@ -27,7 +27,7 @@ use std::ops::Range;
 use nalgebra::{SMatrix, SVector};
 
 use crate::forces::PARALLEL_THRESHOLD;
-use crate::graph::{block_pattern, matrix_owned, matrix_ref, BlockGraph, Contribution};
+use crate::graph::{block_pattern_with_links, matrix_owned, matrix_ref, BlockGraph, Contribution};
 use crate::schedule::{Gather, RefillSchedule};
 use crate::spring::{Definiteness, HessianTerms};
 use crate::FreeDofs;
@@ -63,6 +63,9 @@ pub struct HessianPattern<const D: usize> {
     graph: BlockGraph,
     schedule: RefillSchedule,
     symbolic: SymbolicSparseColMat<usize>,
+    /// The off-diagonal blocks no spring writes (those of [`HessianPattern::with_links`]), as
+    /// (block column, slot): zeroed by every refill.
+    link_blocks: Vec<(u32, u32)>,
 }
 
 impl<const D: usize> HessianPattern<D> {
@@ -77,14 +80,110 @@ impl<const D: usize> HessianPattern<D> {
     /// `SpringMesh` never does), or `free` was built for another vertex count.
     #[track_caller]
     pub fn new(vertex_count: usize, springs: &[Spring], free: Option<&FreeDofs>) -> Self {
+        Self::with_links(vertex_count, springs, &[], free)
+    }
+
+    /// [`HessianPattern::new`] with a block for every pair of free vertices in `links` (vertex
+    /// indices of the full mesh) as well, for terms that couple vertices no spring joins
+    /// (self-contact pairs), which add their blocks with [`HessianPattern::add_block`]. Links with
+    /// a pinned end, repeated links and links along springs add no block. A refill writes zeros
+    /// into the blocks no spring writes, so they hold only what is added after it.
+    ///
+    /// # Panics
+    /// As [`HessianPattern::new`], and if a link has an end ≥ `vertex_count`.
+    #[track_caller]
+    pub fn with_links(
+        vertex_count: usize,
+        springs: &[Spring],
+        links: &[[u32; 2]],
+        free: Option<&FreeDofs>,
+    ) -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::DIMENSION_IS_1_TO_3;
-        let (graph, symbolic) = block_pattern::<D>(vertex_count, springs, free);
+        let (graph, symbolic) = block_pattern_with_links::<D>(vertex_count, springs, links, free);
         let schedule = RefillSchedule::new::<D>(&graph);
+        let mut link_blocks = Vec::new();
+        if !links.is_empty() {
+            let mut written = Vec::new();
+            for column in 0..graph.columns() {
+                written.clear();
+                written.resize(graph.column_blocks(column).len(), false);
+                written[graph.diagonal_slot(column)] = true;
+                for c in graph.contributions(column) {
+                    if c.slot != Contribution::PINNED_OTHER {
+                        written[c.slot as usize] = true;
+                    }
+                }
+                link_blocks.extend(
+                    (0..written.len())
+                        .filter(|&slot| !written[slot])
+                        .map(|slot| (column as u32, slot as u32)),
+                );
+            }
+        }
         HessianPattern {
             graph,
             schedule,
             symbolic,
+            link_blocks,
+        }
+    }
+
+    /// Whether the pattern stores the block (`row`, `column`) of block columns (free vertex
+    /// numbers in [`FreeDofs`], or vertex indices for a pattern on all vertices).
+    pub fn has_block(&self, row: usize, column: usize) -> bool {
+        column < self.graph.columns()
+            && self
+                .graph
+                .block_rows(column)
+                .binary_search(&(row as u32))
+                .is_ok()
+    }
+
+    /// Add `block` to the block (`row`, `column`) (block column numbers as in
+    /// [`HessianPattern::has_block`]); `false`, adding nothing, if the pattern does not store it.
+    /// Only this block is touched: add the transpose to (`column`, `row`) to keep `values`
+    /// symmetric (a symmetric term adding both in the same order keeps it exactly symmetric).
+    ///
+    /// # Panics
+    /// If `column` is out of range or `values` does not have one entry per stored entry.
+    #[track_caller]
+    pub fn add_block(
+        &self,
+        row: usize,
+        column: usize,
+        block: &SMatrix<f64, D, D>,
+        values: &mut [f64],
+    ) -> bool {
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "add_block: one value per stored entry"
+        );
+        let graph = &self.graph;
+        let Ok(slot) = graph.block_rows(column).binary_search(&(row as u32)) else {
+            return false;
+        };
+        let blocks = graph.column_blocks(column);
+        let column_len = D * blocks.len();
+        let at = D * D * blocks.start + D * slot;
+        for b in 0..D {
+            for a in 0..D {
+                values[at + b * column_len + a] += block[(a, b)];
+            }
+        }
+        true
+    }
+
+    /// Zero the blocks no spring writes ([`HessianPattern::with_links`]).
+    fn zero_link_blocks(&self, values: &mut [f64]) {
+        for &(column, slot) in &self.link_blocks {
+            let blocks = self.graph.column_blocks(column as usize);
+            let column_len = D * blocks.len();
+            let at = D * D * blocks.start + D * slot as usize;
+            for b in 0..D {
+                values[at + b * column_len..at + b * column_len + D].fill(0.0);
+            }
         }
     }
 
@@ -319,6 +418,7 @@ impl<const D: usize> HessianPattern<D> {
                     .for_each_leaf::<D, _, _>(values, ring, ring_offsets, parallel, &fill);
             }
         }
+        self.zero_link_blocks(values);
     }
 
     /// Add the velocity Jacobian of the dashpot damping along every spring, scaled: for each spring

@@ -27,6 +27,7 @@ pub mod interop;
 pub mod pd;
 mod schedule;
 pub mod spring;
+pub mod surface_barrier;
 
 pub use counter_force::CounterForce;
 pub use dofs::FreeDofs;

@@ -109,19 +109,24 @@ pub(crate) fn run_integrator_help() -> String {
 
 /// `hooke bench`'s help of the scene argument: the scenes it measures, and where the others go.
 pub(crate) fn bench_scene_help() -> String {
-    let (contact, measured): (Vec<String>, Vec<String>) = scenes::builtin_scenes()
+    let (contact, rest): (Vec<String>, Vec<String>) = scenes::builtin_scenes()
         .into_iter()
         .map(|(name, _)| name)
         .filter(|name| name != "seed-2d")
         .partition(|name| scenes::builtin_has_contact(name));
+    let (moving, measured): (Vec<String>, Vec<String>) = rest
+        .into_iter()
+        .partition(|name| scenes::builtin_has_pin_path(name));
     let fluid: Vec<&str> = crate::sph::builtin_scenes().map(|(name, _)| name).collect();
     format!(
         "A built-in 3D spring scene without obstacles ({}) or such a scene file; not used with \
-         --sweep or --hard-cases. The scenes with obstacles ({}) are refused here, since the \
-         measured step's objective has no contact term; --hard-cases runs {}. The 2D seed-2d \
-         is not measured; the fluid scenes ({}) are timed by --sph NAME",
+         --sweep or --hard-cases. The scenes with obstacles ({}) or moving pins ({}) are refused \
+         here, since the measured step's objective has no contact term and holds pins still; \
+         --hard-cases runs {}. The 2D seed-2d is not measured; the fluid scenes ({}) are timed by \
+         --sph NAME",
         measured.join(", "),
         contact.join(", "),
+        moving.join(", "),
         crate::bench::HARD_SCENES.join(", "),
         fluid.join(", ")
     )

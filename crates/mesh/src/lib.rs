@@ -1,7 +1,8 @@
 //! # hooke-mesh
 //!
 //! Meshes and spring graphs for hooke: triangle and tetrahedral meshes, springs from their edges
-//! (and cloth bending springs), lumped masses, generators for the canonical scenes, and mesh files.
+//! (and cloth bending springs), lumped masses, generators for the canonical scenes, mesh files, and
+//! exact self-intersection checks of triangle surfaces ([`intersection`]).
 //!
 //! Units are SI throughout: metres, kilograms, seconds, newtons per metre.
 //!
@@ -22,6 +23,7 @@
 mod elements;
 mod error;
 pub mod generators;
+pub mod intersection;
 pub mod io;
 #[cfg(feature = "proptest-support")]
 pub mod proptest_support;

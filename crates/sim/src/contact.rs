@@ -178,6 +178,51 @@ impl BarrierSettings {
     }
 }
 
+/// Self-contact of the mesh's surface (docs/contact.md): the point–triangle and edge–edge pairs of
+/// its triangles (a cloth's triangles, a solid's boundary faces) within the reach d̂ repel each
+/// other by IPC's barrier, and every line search stops before a pair passes through another, so
+/// the surface never intersects itself. Modelled by the integrators whose step minimises Φ with
+/// the barrier (newton, newton-cg, lbfgs); the others refuse it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SelfContact {
+    /// The barrier's reach d̂ (m, finite, > 0). `None`: the obstacles' d̂
+    /// ([`BarrierSettings::distance`], or its default from the mesh's size).
+    pub distance: Option<f64>,
+}
+
+impl SelfContact {
+    /// Check every value set.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the value that is not finite and positive.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if let Some(d) = self.distance {
+            positive("self_contact.dhat", d)?;
+        }
+        Ok(())
+    }
+
+    /// d̂ (m) and κ (N/m) resolved for a mesh at `positions` with `masses` under `barrier`: d̂ as
+    /// given or the barrier's (resolved); κ = κ̂ m̄ with κ̂ the barrier's stiffness per unit mass
+    /// (its default taken at this d̂) and m̄ the mean vertex mass, so that a pair of average
+    /// vertices feels what a vertex feels from an obstacle.
+    pub fn resolve<const D: usize>(
+        &self,
+        barrier: &BarrierSettings,
+        positions: &[SVector<f64, D>],
+        masses: &[f64],
+    ) -> (f64, f64) {
+        let distance = self
+            .distance
+            .unwrap_or_else(|| barrier.resolve(positions).0);
+        let per_mass = barrier
+            .stiffness
+            .unwrap_or(DEFAULT_BARRIER_STIFFNESS * STANDARD_GRAVITY / distance);
+        let mean_mass = masses.iter().sum::<f64>() / masses.len().max(1) as f64;
+        (distance, per_mass * mean_mass)
+    }
+}
+
 /// The obstacles of `contacts` as the solvers see them: a plane as one half-space, a box as its
 /// 2·D walls (half-spaces facing inwards), a sphere as a sphere to stay outside of; each with its
 /// friction coefficient.

@@ -29,6 +29,10 @@
 //! # vertices = [0, 39]     # or region = { min = [..], max = [..] }
 //! # velocity = [0.5, 0.0, 0.0]              # m/s, constant; or keyframes of the displacement (m),
 //! # keyframes = [{ time = 0.0, offset = [0.0, 0.0, 0.0] }, { time = 1.0, offset = [0.5, 0.0, 0.0] }]
+//! #                        # a keyframe may also turn: rotate = { axis = [0.0, 0.0, 1.0], point = [0.5, 0.0, 0.0], degrees = 90.0 }
+//! #                        # (degrees right-handed about the axis through the point, m; interpolated
+//! #                        # linearly, so 720 is two turns; one axis and point per path; 2D: no axis,
+//! #                        # counter-clockwise about the point)
 //!
 //! [forces]
 //! gravity = [0.0, -9.81, 0.0]                           # m/s²
@@ -51,6 +55,11 @@
 //! # distance = 0.001       # d̂, m: the barrier's reach; default 1e-3 of the mesh's bounding-box diagonal
 //! # stiffness = 1e7        # κ̂, 1/s² per unit of vertex mass; default 1000 · 9.80665 / d̂
 //! # friction_velocity = 0.001  # ε_v, m/s: friction's smoothing velocity
+//!
+//! # [self_contact]         # the surface never passes through itself (newton, newton-cg, lbfgs)
+//! # enabled = true         # default true when the section is given
+//! # dhat = 0.001           # d̂, m: the self-contact barrier's reach; default the [barrier]'s distance
+//! # friction = 0.0         # μ between parts of the surface (only 0 for now)
 //!
 //! # [initial]              # the state at time 0; default: at rest
 //! # velocity = [0.0, -5.0, 0.0]   # m/s, every vertex but the pinned ones
@@ -102,14 +111,14 @@ use hooke_solvers::{GlobalSolveKind, MemoryBudget};
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
-use crate::contact::{BarrierSettings, Contact, Shape};
+use crate::contact::{BarrierSettings, Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{
     parse_energy_limit, Integrator, LinearSolver, PinMethod, RelaxationPreset, Settings,
     SolverOptions,
 };
-use crate::scene::{Keyframe, PinPath, Pins, Scene};
+use crate::scene::{Keyframe, PinPath, Pins, Rotation, Scene};
 use crate::scenes::{AnySetup, Setup};
 use crate::SimError;
 
@@ -181,6 +190,7 @@ struct Document {
     #[serde(default)]
     contact: Vec<ContactSection>,
     barrier: Option<BarrierSection>,
+    self_contact: Option<SelfContactSection>,
     initial: Option<InitialSection>,
     integrator: IntegratorSection,
     run: RunSection,
@@ -240,6 +250,15 @@ struct BarrierSection {
     friction_velocity: Option<f64>,
 }
 
+/// `[self_contact]`: self-contact of the mesh's surface ([`SelfContact`]).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SelfContactSection {
+    enabled: Option<bool>,
+    dhat: Option<f64>,
+    friction: Option<f64>,
+}
+
 /// `[initial]`: the state at time 0 beyond the mesh's positions.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -291,6 +310,16 @@ struct PathSection {
 struct KeyframeSection {
     time: f64,
     offset: Vec<f64>,
+    rotate: Option<PathRotateSection>,
+}
+
+/// A keyframe's `rotate = { axis = [..], point = [..], degrees = θ }` (no axis in 2D).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathRotateSection {
+    axis: Option<Vec<f64>>,
+    point: Option<Vec<f64>>,
+    degrees: f64,
 }
 
 #[derive(Deserialize)]
@@ -860,6 +889,45 @@ impl Context<'_> {
             .collect()
     }
 
+    /// A pin path keyframe's `rotate` table, `key` naming it. The values' own checks (finite,
+    /// non-zero axis, one axis per path) are [`PinPath::validate`]'s.
+    fn path_rotation<const D: usize>(
+        &self,
+        key: &str,
+        r: &PathRotateSection,
+    ) -> Result<Rotation<D>, SceneFileError> {
+        let axis = match (D, &r.axis) {
+            (2, None) => nalgebra::Vector3::z(),
+            (2, Some(_)) => {
+                return Err(self.invalid(
+                    &format!("{key}.axis"),
+                    "a 2D path turns in its plane, counter-clockwise: give `point` and \
+                     `degrees` only",
+                ))
+            }
+            (_, None) => {
+                return Err(self.invalid(
+                    &format!("{key}.axis"),
+                    "missing: the axis [x, y, z] to turn about (right-handed)",
+                ))
+            }
+            (_, Some(axis)) => self.vector::<3>(&format!("{key}.axis"), axis)?,
+        };
+        let point = match &r.point {
+            Some(point) => self.vector::<D>(&format!("{key}.point"), point)?,
+            None => {
+                return Err(
+                    self.invalid(&format!("{key}.point"), "missing: a point of the axis (m)")
+                )
+            }
+        };
+        Ok(Rotation {
+            axis,
+            point,
+            degrees: r.degrees,
+        })
+    }
+
     fn setup<const D: usize>(
         &self,
         name: String,
@@ -918,6 +986,16 @@ impl Context<'_> {
                                         &key(&format!(".keyframes[{k}].offset")),
                                         &f.offset,
                                     )?,
+                                    rotation: f
+                                        .rotate
+                                        .as_ref()
+                                        .map(|r| {
+                                            self.path_rotation::<D>(
+                                                &key(&format!(".keyframes[{k}].rotate")),
+                                                r,
+                                            )
+                                        })
+                                        .transpose()?,
                                 })
                             })
                             .collect::<Result<_, SceneFileError>>()?,
@@ -930,9 +1008,21 @@ impl Context<'_> {
                         ))
                     }
                 };
-                scene = scene
-                    .with_pin_path(pins, motion)
-                    .map_err(|e| invalid("", e))?;
+                scene = scene.with_pin_path(pins, motion).map_err(|e| match e {
+                    // The path's own checks name its fields: name them as the file's keys.
+                    SimError::InvalidParameter {
+                        name,
+                        value,
+                        reason,
+                    } if name.starts_with("pin path ") => self.invalid(
+                        &key(&format!(
+                            ".{}",
+                            name["pin path ".len()..].replace(".rotation", ".rotate")
+                        )),
+                        format!("{value}: {reason}"),
+                    ),
+                    e => invalid("", e),
+                })?;
             }
         }
         let f = &doc.forces;
@@ -1011,11 +1101,16 @@ impl Context<'_> {
             );
         }
         scene = scene.with_contacts(contacts).map_err(sim("contact"))?;
+        let self_contact_on = doc
+            .self_contact
+            .as_ref()
+            .is_some_and(|c| c.enabled.unwrap_or(true));
         if let Some(b) = &doc.barrier {
-            if doc.contact.is_empty() {
+            if doc.contact.is_empty() && !self_contact_on {
                 return Err(self.invalid(
                     "barrier",
-                    "the scene has no [[contact]] obstacle for the barrier to act on",
+                    "the scene has no [[contact]] obstacle and no [self_contact] for the barrier \
+                     to act on",
                 ));
             }
             let defaults = BarrierSettings::default();
@@ -1025,6 +1120,31 @@ impl Context<'_> {
                 friction_velocity: b.friction_velocity.unwrap_or(defaults.friction_velocity),
             };
             scene = scene.with_barrier(barrier).map_err(sim("barrier"))?;
+        }
+        if let Some(c) = &doc.self_contact {
+            if let Some(mu) = c.friction {
+                if !(mu.is_finite() && mu >= 0.0) {
+                    return Err(self.invalid(
+                        "self_contact.friction",
+                        format!("{mu} must be finite and ≥ 0"),
+                    ));
+                }
+                if mu > 0.0 {
+                    return Err(self.invalid(
+                        "self_contact.friction",
+                        format!(
+                            "{mu}: friction between parts of the surface is not modelled yet; \
+                             give 0 or leave the key out"
+                        ),
+                    ));
+                }
+            }
+            if self_contact_on {
+                let settings = SelfContact { distance: c.dhat };
+                scene = scene
+                    .with_self_contact(Some(settings))
+                    .map_err(sim("self_contact"))?;
+            }
         }
         let integrator: Integrator = i
             .method
@@ -1618,6 +1738,146 @@ tolerance = 1e-9
                 .to_string();
             assert!(err.contains(expected), "{path}: {err}");
         }
+    }
+
+    /// A keyframe's `rotate` table gives the path the same rotation as built in code, and the
+    /// vertex follows it through a run; bad values are refused naming the file's key.
+    #[test]
+    fn pin_path_rotations_are_read_and_bad_ones_name_the_key() {
+        let integrator = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";
+        let setup = parse(&format!(
+            "{integrator}[[pins.path]]\nvertices = [15]\nkeyframes = [\
+             {{ time = 0.0, offset = [0.0, 0.0, 0.0] }}, \
+             {{ time = 0.1, offset = [0.0, 0.0, 0.5], rotate = {{ axis = [0.0, 2.0, 0.0], point = [0.5, 0.0, 0.5], degrees = 90.0 }} }}]\n"
+        ))
+        .unwrap();
+        let turn = |degrees| {
+            Some(Rotation {
+                axis: nalgebra::Vector3::new(0.0, 2.0, 0.0),
+                point: nalgebra::Vector3::new(0.5, 0.0, 0.5),
+                degrees,
+            })
+        };
+        let expected = PinPath::Keyframes(vec![
+            Keyframe {
+                time: 0.0,
+                offset: nalgebra::Vector3::zeros(),
+                rotation: None,
+            },
+            Keyframe {
+                time: 0.1,
+                offset: nalgebra::Vector3::new(0.0, 0.0, 0.5),
+                rotation: turn(90.0),
+            },
+        ]);
+        assert_eq!(setup.scene.pin_paths()[0].path, expected);
+        // Vertex 15 of the 4×4 cloth is its corner (1, 0, 1): a quarter turn about y through the
+        // centre takes it to (1, 0, 0), and the displacement to (1, 0, 0.5).
+        let start = setup.initial.positions[15];
+        assert_eq!(start, nalgebra::Vector3::new(1.0, 0.0, 1.0));
+        let mut sim = crate::Simulation::new(setup.scene, setup.initial, setup.settings).unwrap();
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        let error = (sim.state().positions[15] - nalgebra::Vector3::new(1.0, 0.0, 0.5)).norm();
+        assert!(error < 1e-12, "{error:e} m off");
+
+        let keyframes = |rotate: &str| {
+            format!(
+                "{integrator}[[pins.path]]\nvertices = [15]\nkeyframes = [\
+                 {{ time = 0.0, offset = [0.0, 0.0, 0.0] }}, \
+                 {{ time = 1.0, offset = [0.0, 0.0, 0.0], rotate = {rotate} }}]\n"
+            )
+        };
+        let key = "pins.path[0].keyframes[1].rotate";
+        for (rotate, expected) in [
+            (
+                "{ axis = [0.0, 0.0, 0.0], point = [0.0, 0.0, 0.0], degrees = 90.0 }",
+                format!("[{key}.axis]"),
+            ),
+            (
+                "{ axis = [0.0, nan, 1.0], point = [0.0, 0.0, 0.0], degrees = 90.0 }",
+                format!("[{key}.axis]"),
+            ),
+            (
+                "{ axis = [0.0, 1.0], point = [0.0, 0.0, 0.0], degrees = 90.0 }",
+                format!("[{key}.axis]"),
+            ),
+            (
+                "{ point = [0.0, 0.0, 0.0], degrees = 90.0 }",
+                format!("[{key}.axis]: missing"),
+            ),
+            (
+                "{ axis = [0.0, 1.0, 0.0], degrees = 90.0 }",
+                format!("[{key}.point]: missing"),
+            ),
+            (
+                "{ axis = [0.0, 1.0, 0.0], point = [0.0, inf, 0.0], degrees = 90.0 }",
+                format!("[{key}.point]"),
+            ),
+            (
+                "{ axis = [0.0, 1.0, 0.0], point = [0.0, 0.0, 0.0], degrees = nan }",
+                format!("[{key}.degrees]"),
+            ),
+            (
+                "{ axis = [0.0, 1.0, 0.0], point = [0.0, 0.0, 0.0] }",
+                "degrees".to_string(),
+            ),
+            (
+                "{ axis = [0.0, 1.0, 0.0], point = [0.0, 0.0, 0.0], degrees = 90.0, speed = 1.0 }",
+                "speed".to_string(),
+            ),
+        ] {
+            let err = parse(&keyframes(rotate)).unwrap_err().to_string();
+            assert!(err.contains(&expected), "{rotate}: {err}");
+        }
+        // Two keyframes turning about different axes.
+        let err = parse(&format!(
+            "{integrator}[[pins.path]]\nvertices = [15]\nkeyframes = [\
+             {{ time = 0.0, offset = [0.0, 0.0, 0.0], rotate = {{ axis = [0.0, 1.0, 0.0], point = [0.0, 0.0, 0.0], degrees = 0.0 }} }}, \
+             {{ time = 1.0, offset = [0.0, 0.0, 0.0], rotate = {{ axis = [1.0, 0.0, 0.0], point = [0.0, 0.0, 0.0], degrees = 90.0 }} }}]\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains(&format!("[{key}.axis]")) && err.contains("one axis"),
+            "{err}"
+        );
+    }
+
+    /// In 2D a keyframe turns in the plane about `point`, counter-clockwise; an axis is refused.
+    #[test]
+    fn a_2d_pin_path_turns_in_the_plane() {
+        let text = |rotate: &str| {
+            format!(
+                "[mesh]\ngenerator = \"particles\"\nstiffness = 100.0\npositions = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]\n\
+                 springs = [[0, 1], [1, 2]]\nrest_lengths = [1.0, 1.0]\nparticle_mass = 1.0\n\
+                 [[pins.path]]\nvertices = [2]\nkeyframes = [{{ time = 0.0, offset = [0.0, 0.0] }}, \
+                 {{ time = 1.0, offset = [0.0, 0.0], rotate = {rotate} }}]\n\
+                 [integrator]\nmethod = \"newton\"\ntime_step = 0.01\n[run]\nsteps = 1\n"
+            )
+        };
+        let file = parse_scene(
+            &text("{ point = [1.0, 0.0], degrees = 90.0 }"),
+            Path::new("flat.toml"),
+        )
+        .unwrap();
+        let AnySetup::Two(setup) = file.setup else {
+            panic!("a 2D scene")
+        };
+        let path = &setup.scene.pin_paths()[0].path;
+        let turned = path.position(&nalgebra::Vector2::new(2.0, 0.0), 1.0);
+        assert!((turned - nalgebra::Vector2::new(1.0, 1.0)).norm() < 1e-15);
+        let err = parse_scene(
+            &text("{ axis = [0.0, 0.0, 1.0], point = [1.0, 0.0], degrees = 90.0 }"),
+            Path::new("flat.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("[pins.path[0].keyframes[1].rotate.axis]") && err.contains("in its plane"),
+            "{err}"
+        );
     }
 
     const NEWTON: &str = "[integrator]\nmethod = \"newton\"\ntime_step = 0.01\n";

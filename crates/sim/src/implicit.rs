@@ -267,6 +267,15 @@ const MAX_HALVINGS: u32 = 12;
 
 /// Refuse scene terms the solver does not model (see the module documentation).
 fn check_supported<const D: usize>(scene: &Scene<D>, name: &str) -> Result<(), SimError> {
+    if (name == "pd" || name == "pd-chebyshev") && scene.self_contact().is_some() {
+        return Err(SimError::Unsupported {
+            integrator: name.to_string(),
+            what: "self-contact (its barrier and the collision detection that caps every line \
+                   search live in the objective that newton, newton-cg and lbfgs minimise: use \
+                   one of those)"
+                .to_string(),
+        });
+    }
     if (name == "pd" || name == "pd-chebyshev") && scene.damping().dashpot > 0.0 {
         return Err(SimError::Unsupported {
             integrator: name.to_string(),
@@ -413,6 +422,9 @@ impl<const D: usize> BackwardEuler<D> {
         };
         objective.set_parallel(parallel);
         objective.set_contact(scene.contact_model(), mesh.masses());
+        objective
+            .set_self_contact(scene.self_contact_model())
+            .map_err(SimError::SolverParameter)?;
         let unknowns = vec![0.0; objective.dim()];
         let pd_factor = |pd_params: PdParams| {
             let pd_params = PdParams {

@@ -38,7 +38,7 @@ pub mod scenes;
 mod simulation;
 pub mod stability;
 
-pub use contact::{BarrierSettings, Contact, Shape};
+pub use contact::{BarrierSettings, Contact, SelfContact, Shape};
 pub use damping::Damping;
 pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;
@@ -47,6 +47,6 @@ pub use integrator::{
     parse_energy_limit, Integrator, LinearSolver, LinearizedParams, PinMethod, RelaxationPreset,
     Settings, SolverOptions, UnknownPinMethod, UnknownRelaxation,
 };
-pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Scene, State};
+pub use scene::{Energy, Keyframe, MovingPins, PinPath, Pins, Rotation, Scene, State};
 pub use simulation::{HalvingMemory, Simulation, Snapshot, StepReport, MAX_AUTO_SUBSTEPS};
 pub use stability::{stability_bound, StabilityBound};

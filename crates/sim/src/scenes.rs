@@ -3,11 +3,11 @@
 use hooke_mesh::generators::{self, SEED_2D_REST_LENGTH};
 use nalgebra::{SVector, Vector2, Vector3};
 
-use crate::contact::{Contact, Shape};
+use crate::contact::{Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{Integrator, Settings};
-use crate::scene::{Pins, Scene, State};
+use crate::scene::{Keyframe, PinPath, Pins, Rotation, Scene, State};
 use crate::SimError;
 
 /// Gravity of the 3D scenes, m/s² (docs/scenes.md).
@@ -89,6 +89,10 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
             format!("cloth-fall-{n}"),
             format!("{n}×{n} cloth, k = 1e3 N/m, no pins, thrown down at 5 m/s from y = 0.5 m onto the ground y = 0, friction 0.3, 30 frames of 1/30 s"),
         ));
+        list.push((
+            format!("cloth-twist-{n}"),
+            format!("{n}×{n} cloth, k = 1e3 N/m, held at two opposite edges, one turned two full turns (720°) about the cloth's middle line in 4 s, gravity, 120 frames of 1/30 s: wrung into dense self-contact"),
+        ));
     }
     for r in [2, 4, 8, 16] {
         list.push((
@@ -112,8 +116,8 @@ pub fn builtin_scenes() -> Vec<(String, String)> {
 }
 
 /// Build a built-in scene by name: `cloth-N`, `cloth-N-stiff`, `cloth-drape-N`, `cloth-fall-N` (any
-/// N ≥ 2), `beam-R` (any R ≥ 1), `bunny-drop`, `torus-hang` or `seed-2d`. Returns `None` for an
-/// unknown name.
+/// N ≥ 2), `cloth-twist-N` (any N ≥ 3), `beam-R` (any R ≥ 1), `bunny-drop`, `torus-hang` or
+/// `seed-2d`. Returns `None` for an unknown name.
 ///
 /// # Errors
 /// A [`SimError`] if the parameters are out of range (e.g. `cloth-1`).
@@ -128,6 +132,10 @@ pub fn builtin(name: &str) -> Option<Result<AnySetup, SimError>> {
     if let Some(size) = name.strip_prefix("cloth-fall-") {
         let n: usize = size.parse().ok()?;
         return Some(cloth_fall(n).map(AnySetup::Three));
+    }
+    if let Some(size) = name.strip_prefix("cloth-twist-") {
+        let n: usize = size.parse().ok()?;
+        return Some(cloth_twist(n).map(AnySetup::Three));
     }
     if let Some(rest) = name.strip_prefix("cloth-") {
         let (size, stiff) = match rest.strip_suffix("-stiff") {
@@ -158,6 +166,12 @@ pub fn builtin_has_contact(name: &str) -> bool {
         || name.starts_with("cloth-fall-")
         || name == "bunny-drop"
         || name == "seed-2d"
+}
+
+/// Whether the built-in scene `name` moves pins along a path (`cloth-twist-N`), from the name
+/// alone like [`builtin_has_contact`]; `false` for an unknown name.
+pub fn builtin_has_pin_path(name: &str) -> bool {
+    name.starts_with("cloth-twist-")
 }
 
 fn gravity_3d() -> ExternalForce<3> {
@@ -254,7 +268,8 @@ pub fn cloth_drape(n: usize) -> Result<Setup<3>, SimError> {
                 friction: DRAPE_FRICTION,
             },
             ground(DRAPE_GROUND, DRAPE_FRICTION),
-        ])?;
+        ])?
+        .with_self_contact(Some(SelfContact::default()))?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()
@@ -271,7 +286,8 @@ pub fn cloth_drape(n: usize) -> Result<Setup<3>, SimError> {
 pub fn cloth_fall(n: usize) -> Result<Setup<3>, SimError> {
     let scene = Scene::new(lifted_cloth(n, FALL_HEIGHT)?, FRAME_TIME_STEP)?
         .with_forces(vec![gravity_3d()])?
-        .with_contacts(vec![ground(0.0, FALL_FRICTION)])?;
+        .with_contacts(vec![ground(0.0, FALL_FRICTION)])?
+        .with_self_contact(Some(SelfContact::default()))?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()
@@ -281,6 +297,55 @@ pub fn cloth_fall(n: usize) -> Result<Setup<3>, SimError> {
         *v = Vector3::new(0.0, -FALL_SPEED, 0.0);
     }
     Ok(setup)
+}
+
+/// The angle (degrees) cloth-twist-N's turning edge turns through: two full turns.
+pub const TWIST_DEGREES: f64 = 720.0;
+/// The time (s) over which cloth-twist-N's edge turns [`TWIST_DEGREES`], at constant angular
+/// speed (180°/s); the scene runs exactly this long.
+pub const TWIST_DURATION: f64 = 4.0;
+
+/// cloth-twist-N: cloth-N's cloth (N×N vertices on the unit square in the x–z plane at y = 0,
+/// k = 1e3 N/m, 1 kg) held by its two edges across x: the edge x = 0 (vertices 0..N) fixed, the
+/// edge x = 1 (vertices N(N−1)..N²) turned right-handed about the x axis through the cloth's centre
+/// (0.5, 0, 0.5) by [`TWIST_DEGREES`] over [`TWIST_DURATION`] at constant angular speed; gravity;
+/// 120 frames of h = 1/30 s by backward Euler (Newton). The twist wrings the cloth into a rope, its
+/// layers pressed through one another: a stress test of self-contact (docs/scenes.md).
+///
+/// # Errors
+/// [`SimError::Mesh`] if `n < 2`; [`SimError::EverythingPinned`] for `n = 2` (both edges are the
+/// whole cloth).
+pub fn cloth_twist(n: usize) -> Result<Setup<3>, SimError> {
+    let mesh = generators::cloth(n, CLOTH_SOFT_STIFFNESS)?;
+    // The generator refuses n > 65,535, so n² fits a u32.
+    let n32 = n as u32;
+    let fixed: Vec<u32> = (0..n32).collect();
+    let turning: Vec<u32> = ((n32 - 1) * n32..n32 * n32).collect();
+    let turn = |time: f64, degrees: f64| Keyframe {
+        time,
+        offset: Vector3::zeros(),
+        rotation: Some(Rotation {
+            axis: Vector3::x(),
+            point: Vector3::new(0.5, 0.0, 0.5),
+            degrees,
+        }),
+    };
+    let path = PinPath::Keyframes(vec![turn(0.0, 0.0), turn(TWIST_DURATION, TWIST_DEGREES)]);
+    let scene = Scene::new(mesh, FRAME_TIME_STEP)?
+        .with_pins(Pins::Vertices(fixed))?
+        .with_pin_path(Pins::Vertices(turning), path)?
+        .with_forces(vec![gravity_3d()])?;
+    let settings = Settings {
+        integrator: Integrator::Newton,
+        ..Settings::default()
+    };
+    let frames = (TWIST_DURATION / FRAME_TIME_STEP).round() as usize;
+    Ok(Setup::new(
+        format!("cloth-twist-{n}"),
+        scene,
+        frames,
+        settings,
+    ))
 }
 
 /// beam-R (docs/scenes.md §3): vertices with x = 0 pinned; gravity; h = 1/30 s; 30 frames.
@@ -453,4 +518,90 @@ pub fn torus_hang() -> Result<Setup<3>, SimError> {
         ..Settings::default()
     };
     Ok(Setup::new("torus-hang".into(), scene, 60, settings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Simulation;
+
+    /// cloth-twist-N pins its two edges across x, the far one on a path about the cloth's middle
+    /// line; by name it builds for any N ≥ 3 and is listed for 20, 40 and 80.
+    #[test]
+    fn cloth_twist_pins_its_two_edges_and_turns_one() {
+        let setup = cloth_twist(5).unwrap();
+        assert_eq!(setup.name, "cloth-twist-5");
+        assert_eq!((setup.steps, setup.scene.time_step()), (120, 1.0 / 30.0));
+        assert_eq!(setup.settings.integrator, Integrator::Newton);
+        let positions = setup.scene.mesh().positions();
+        let pinned = setup.scene.pinned();
+        assert_eq!(pinned, [0, 1, 2, 3, 4, 20, 21, 22, 23, 24]);
+        for &v in pinned {
+            let x = positions[v as usize].x;
+            assert!(x == 0.0 || x == 1.0, "vertex {v} at x = {x}");
+        }
+        let paths = setup.scene.pin_paths();
+        assert_eq!(paths.len(), 1);
+        assert_eq!(paths[0].vertices, [20, 21, 22, 23, 24]);
+        assert!(positions[20..].iter().all(|p| p.x == 1.0));
+        // Constant angular speed: 180°/s, 720° at the end, held after.
+        for (t, degrees) in [
+            (0.0, 0.0),
+            (1.0, 180.0),
+            (2.0, 360.0),
+            (4.0, 720.0),
+            (5.0, 720.0),
+        ] {
+            assert!((paths[0].path.angle_degrees(t) - degrees).abs() < 1e-12);
+        }
+        assert_eq!(
+            setup.scene.forces().gravity(),
+            Some(Vector3::new(0.0, -GRAVITY, 0.0))
+        );
+        assert!(setup.scene.contacts().is_empty());
+        assert!(builtin_has_pin_path("cloth-twist-40") && !builtin_has_contact("cloth-twist-40"));
+        let listed: Vec<String> = builtin_scenes().into_iter().map(|(n, _)| n).collect();
+        for n in [20, 40, 80] {
+            assert!(listed.contains(&format!("cloth-twist-{n}")));
+        }
+        let Some(Ok(AnySetup::Three(by_name))) = builtin("cloth-twist-40") else {
+            panic!("cloth-twist-40 builds by name")
+        };
+        assert_eq!(by_name.scene.mesh().vertex_count(), 1600);
+        assert!(matches!(
+            builtin("cloth-twist-2"),
+            Some(Err(SimError::EverythingPinned { .. }))
+        ));
+        assert!(matches!(builtin("cloth-twist-1"), Some(Err(_))));
+        assert!(builtin("cloth-twist-x").is_none());
+    }
+
+    /// After 1 s (30 frames) the turning edge has turned 180° about the line y = 0, z = 0.5: a
+    /// vertex at (1, 0, z) is at (1, 0, 1 − z), to round-off of the 1 m cloth; the fixed edge has
+    /// not moved.
+    #[test]
+    fn cloth_twist_edge_is_half_a_turn_round_after_one_second() {
+        let setup = cloth_twist(6).unwrap();
+        let start = setup.initial.positions.clone();
+        let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings).unwrap();
+        for _ in 0..30 {
+            sim.step().unwrap();
+        }
+        assert!((sim.state().time - 1.0).abs() < 1e-12);
+        let (positions, velocities) = (&sim.state().positions, &sim.state().velocities);
+        // Their velocity is the path's mean over the last step: the chord from 29/30 s to 1 s.
+        let path = &sim.scene().pin_paths()[0].path;
+        let h = 1.0 / 30.0;
+        for (v, x0) in start.iter().enumerate().skip(30) {
+            let expected = Vector3::new(1.0, 0.0, 1.0 - x0.z);
+            let error = (positions[v] - expected).norm();
+            assert!(error < 1e-12, "vertex {v}: {error:e} m off");
+            let chord = (path.position(x0, 1.0) - path.position(x0, 1.0 - h)) / h;
+            let error = (velocities[v] - chord).norm();
+            assert!(error < 1e-9, "vertex {v}: velocity {error:e} m/s off");
+        }
+        assert_eq!(positions[..6], start[..6], "the fixed edge");
+        // The free middle of the cloth is not where it started (it sags and twists).
+        assert!((positions[15] - start[15]).norm() > 1e-3);
+    }
 }

@@ -66,7 +66,8 @@ pub struct Simulation<const D: usize> {
     divergence_limit: f64,
     implicit: Option<BackwardEuler<D>>,
     linearized: Option<Linearized<D>>,
-    /// Vertices on pin paths: (vertex, index into the scene's paths, anchor = x(t₀) − d(t₀)).
+    /// Vertices on pin paths: (vertex, index into the scene's paths, reference position x₀ with
+    /// x(t₀) = path position of x₀ at t₀, [`crate::PinPath::reference`]).
     moving: Vec<(usize, usize, SVector<f64, D>)>,
     /// Pinned positions at the end of the current step (full numbering; free entries unused).
     next_pinned: Vec<SVector<f64, D>>,
@@ -91,6 +92,15 @@ impl<const D: usize> Simulation<D> {
     ///   `settings.allow_unstable` is false.
     pub fn new(scene: Scene<D>, state: State<D>, settings: Settings) -> Result<Self, SimError> {
         settings.validate()?;
+        if scene.self_contact().is_some() && !settings.integrator.uses_contact_barrier() {
+            return Err(SimError::Unsupported {
+                integrator: settings.integrator.to_string(),
+                what: "self-contact (its barrier and the collision detection that caps every \
+                       line search live in the objective that newton, newton-cg and lbfgs \
+                       minimise: use one of those)"
+                    .to_string(),
+            });
+        }
         // Settings::parallel governs every integrator (PD's own flag included).
         let mut settings = settings;
         settings.pd.parallel = settings.parallel;
@@ -193,9 +203,11 @@ impl<const D: usize> Simulation<D> {
         };
         let mut moving = Vec::new();
         for (index, group) in scene.pin_paths().iter().enumerate() {
-            let start = group.path.offset(state.time);
             for &v in &group.vertices {
-                moving.push((v as usize, index, state.positions[v as usize] - start));
+                let reference = group
+                    .path
+                    .reference(&state.positions[v as usize], state.time);
+                moving.push((v as usize, index, reference));
             }
         }
         let spring_forces = SpringForces::new(n, scene.mesh().springs());
@@ -353,7 +365,7 @@ impl<const D: usize> Simulation<D> {
         }
         let paths = self.scene.pin_paths();
         for &(v, path, anchor) in &self.moving {
-            self.next_pinned[v] = anchor + paths[path].path.offset(t);
+            self.next_pinned[v] = paths[path].path.position(&anchor, t);
         }
     }
 
@@ -426,7 +438,7 @@ impl<const D: usize> Simulation<D> {
             let frame_start = self.start_time + self.steps_taken as f64 * h;
             let pins_at = |offset: f64, targets: &mut [SVector<f64, D>]| {
                 for &(v, path, anchor) in moving {
-                    targets[v] = anchor + paths[path].path.offset(frame_start + offset);
+                    targets[v] = paths[path].path.position(&anchor, frame_start + offset);
                 }
             };
             let outcome = implicit.step(

@@ -16,9 +16,12 @@ mod contact;
 mod objective;
 mod patches;
 mod relaxation;
+mod self_contact;
 use contact::StepContact;
 pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
+pub use self_contact::SelfContactModel;
+use self_contact::StepSelfContact;
 
 /// The default θ of [`BackwardEulerStep::set_definite_share`]: half of every vertex's mass may
 /// hold its compressed springs, half is kept as the margin of definiteness.
@@ -139,6 +142,12 @@ pub struct BackwardEulerStep<const D: usize> {
     /// Contact barriers and lagged friction ([`BackwardEulerStep::set_contact`]); `None`: no
     /// obstacles, and no cost.
     contact: Option<Box<StepContact<D>>>,
+    /// Self-contact barriers ([`BackwardEulerStep::set_self_contact`]); `None`: none, and no cost.
+    self_contact: Option<Box<StepSelfContact>>,
+    /// The vertex pairs the Hessian's pattern holds beyond the springs (self-contact pairs seen so
+    /// far), sorted, and the pairs the last pattern update asked for (scratch).
+    links: Vec<[u32; 2]>,
+    wanted_links: Vec<[u32; 2]>,
     /// Per vertex, a contact term's gradient or a trial move (scratch of the contact terms).
     contact_scratch: Vec<SVector<f64, D>>,
     /// The unknowns of a candidate initial guess (sized on first use).
@@ -265,6 +274,9 @@ impl<const D: usize> BackwardEulerStep<D> {
             dashpot_start: Vec::new(),
             dashpot_directions: Vec::new(),
             contact: None,
+            self_contact: None,
+            links: Vec::new(),
+            wanted_links: Vec::new(),
             contact_scratch: Vec::new(),
             start_guess: Vec::new(),
             free,
@@ -276,12 +288,44 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// The Hessian's pattern and buffers, made on first use.
     pub(crate) fn assembly(&self) -> &HessianAssembly<D> {
         self.assembly.get_or_init(|| {
-            HessianAssembly::new(HessianPattern::new(
+            HessianAssembly::new(HessianPattern::with_links(
                 self.free.vertex_count(),
                 &self.springs,
+                &self.links,
                 Some(&self.free),
             ))
         })
+    }
+
+    /// Add `wanted` (vertex pairs, lower index first) to the pattern's links; if any was new, make
+    /// the pattern again (and the counter-forces on it). Returns whether the pattern changed.
+    fn grow_pattern(&mut self, wanted: &mut Vec<[u32; 2]>) -> bool {
+        wanted.sort_unstable();
+        wanted.dedup();
+        let links = &self.links;
+        if wanted.iter().all(|l| links.binary_search(l).is_ok()) {
+            return false;
+        }
+        let mut merged = Vec::with_capacity(self.links.len() + wanted.len());
+        merged.extend_from_slice(&self.links);
+        merged.extend_from_slice(wanted);
+        merged.sort_unstable();
+        merged.dedup();
+        self.links = merged;
+        let n = self.free.vertex_count();
+        if self.counter.is_some() {
+            let built = HessianAssembly::new(HessianPattern::with_links(
+                n,
+                &self.springs,
+                &self.links,
+                None,
+            ));
+            self.counter = Some(CounterForce::new(&built.pattern, &self.free));
+            self.assembly = OnceLock::from(built);
+        } else {
+            self.assembly = OnceLock::new();
+        }
+        true
     }
 
     /// Run the per-spring loops (energy, forces, Hessian assembly) with rayon or serially (default:
@@ -289,6 +333,9 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// either way; the relaxation is serial in both.
     pub fn set_parallel(&mut self, parallel: bool) {
         self.parallel = parallel;
+        if let Some(terms) = &mut self.self_contact {
+            terms.parallel = parallel;
+        }
     }
 
     /// Whether the per-spring loops run in parallel ([`BackwardEulerStep::set_parallel`]).
@@ -359,17 +406,26 @@ impl<const D: usize> BackwardEulerStep<D> {
         // every obstacle, x_n (outside every obstacle) otherwise. A start part of the way to y
         // would put the vertices nearest an obstacle at a tenth of their distance, deep in the
         // barrier, for Newton to push back out.
-        let share = match &mut self.contact {
+        if self.contact.is_some() || self.self_contact.is_some() {
+            for (d, (y, x)) in self.contact_scratch.iter_mut().zip(y.iter().zip(positions)) {
+                *d = y - x;
+            }
+            // Pinned vertices stay where they are put.
+            for &p in self.free.pinned() {
+                self.contact_scratch[p as usize] = SVector::zeros();
+            }
+        }
+        let mut share = match &mut self.contact {
             Some(contact) => {
                 let free = self.free.free_vertices();
                 contact.lag_friction(free, positions);
-                for (d, (y, x)) in self.contact_scratch.iter_mut().zip(y.iter().zip(positions)) {
-                    *d = y - x;
-                }
                 contact.max_step(free, positions, &self.contact_scratch)
             }
             None => 1.0,
         };
+        if let Some(self_contact) = &mut self.self_contact {
+            share = share.min(self_contact.max_step(positions, &self.contact_scratch));
+        }
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
             let o = Self::offset(full, f, v);
@@ -392,17 +448,28 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// Replace the initial guess x_n in `unknowns` by x_n + h v_n if the way there is clear of every
     /// obstacle and Φ is lower there (see [`BackwardEulerStep::set_step_with_velocities`]).
     fn try_moving_start(&mut self, velocities: &[SVector<f64, D>], unknowns: &mut [f64]) {
-        let Some(contact) = &self.contact else {
+        if self.contact.is_none() && self.self_contact.is_none() {
             return;
-        };
+        }
         let h = self.h;
-        let free = self.free.free_vertices();
         for (d, v) in self.contact_scratch.iter_mut().zip(velocities) {
             *d = v * h;
         }
-        if contact.max_step(free, &self.x, &self.contact_scratch) < 1.0 {
-            return;
+        for &p in self.free.pinned() {
+            self.contact_scratch[p as usize] = SVector::zeros();
         }
+        let free = self.free.free_vertices();
+        if let Some(contact) = &self.contact {
+            if contact.max_step(free, &self.x, &self.contact_scratch) < 1.0 {
+                return;
+            }
+        }
+        if let Some(self_contact) = &mut self.self_contact {
+            if self_contact.max_step(&self.x, &self.contact_scratch) < 1.0 {
+                return;
+            }
+        }
+        let free = self.free.free_vertices();
         let full = self.counter.is_some();
         let mut moved = std::mem::take(&mut self.start_guess);
         moved.clear();
@@ -485,6 +552,98 @@ impl<const D: usize> BackwardEulerStep<D> {
         });
         if self.contact.is_some() && self.contact_scratch.len() != self.x.len() {
             self.contact_scratch = vec![SVector::zeros(); self.x.len()];
+        }
+    }
+
+    /// Add self-contact of a triangle surface to Φ (`None` removes it): for every point–triangle
+    /// and edge–edge pair of `model.triangles` within the reach d̂ that shares no vertex (and is
+    /// not excluded at rest, see `hooke_collision::broad_phase::SurfaceTopology::exclude_close_at_rest`),
+    /// h² κ b(d) with IPC's log barrier, edge–edge pairs mollified where nearly parallel
+    /// (docs/contact.md). Every line search is then capped so that no pair passes through another
+    /// ([`crate::NewtonProblem::max_step_length`], by additive CCD), and the Hessian's pattern
+    /// grows by the vertex pairs that active pairs couple ([`crate::NewtonProblem::update_pattern`]).
+    /// The surface must be free of intersections and every pair apart (d > 0) at the start of each
+    /// step; the caller checks it.
+    ///
+    /// # Errors
+    /// [`ParamError`] if D ≠ 3, the distance or stiffness is not finite and positive, a triangle
+    /// names a vertex out of range or repeats one, or there is not one rest position per vertex.
+    pub fn set_self_contact(&mut self, model: Option<SelfContactModel>) -> Result<(), ParamError> {
+        let Some(model) = model else {
+            self.self_contact = None;
+            return Ok(());
+        };
+        let n = self.x.len();
+        if D != 3 {
+            return Err(ParamError::Input {
+                field: "SelfContactModel",
+                problem: format!("self-contact is for triangle surfaces in 3D, not {D}D"),
+            });
+        }
+        crate::params::positive("SelfContactModel::distance", model.distance)?;
+        crate::params::positive("SelfContactModel::stiffness", model.stiffness)?;
+        if model.rest_positions.len() != n {
+            return Err(ParamError::Input {
+                field: "SelfContactModel::rest_positions",
+                problem: format!(
+                    "{} rest positions for {n} vertices: give one per vertex",
+                    model.rest_positions.len()
+                ),
+            });
+        }
+        if let Some(p) = model
+            .rest_positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(ParamError::Input {
+                field: "SelfContactModel::rest_positions",
+                problem: format!("rest position {p} is not finite"),
+            });
+        }
+        for (k, t) in model.triangles.iter().enumerate() {
+            if t.iter().any(|&v| v as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                return Err(ParamError::Input {
+                    field: "SelfContactModel::triangles",
+                    problem: format!("triangle {k} {t:?} needs three distinct vertices below {n}"),
+                });
+            }
+        }
+        let mut free = vec![false; n];
+        for &v in self.free.free_vertices() {
+            free[v as usize] = true;
+        }
+        let mut terms = StepSelfContact::new(model, free);
+        terms.parallel = self.parallel;
+        self.self_contact = Some(Box::new(terms));
+        if self.contact_scratch.len() != n {
+            self.contact_scratch = vec![SVector::zeros(); n];
+        }
+        Ok(())
+    }
+
+    /// The self-contact model, if any ([`BackwardEulerStep::set_self_contact`]).
+    pub fn self_contact(&self) -> Option<&SelfContactModel> {
+        self.self_contact.as_ref().map(|c| &c.model)
+    }
+
+    /// The smallest distance (m) between two primitives of the surface at the unknowns `xf`, among
+    /// the pairs within 1.5 d̂ (∞ without self-contact or without such a pair).
+    pub fn smallest_self_distance(&mut self, xf: &[f64]) -> f64 {
+        self.expand(xf);
+        match &mut self.self_contact {
+            Some(terms) => terms.smallest_distance(&self.x),
+            None => f64::INFINITY,
+        }
+    }
+
+    /// The numbers of point–triangle and edge–edge pairs within d̂ at the unknowns `xf` ((0, 0)
+    /// without self-contact).
+    pub fn self_contact_pairs(&mut self, xf: &[f64]) -> (usize, usize) {
+        self.expand(xf);
+        match &mut self.self_contact {
+            Some(terms) => terms.active_counts(&self.x),
+            None => (0, 0),
         }
     }
 

@@ -155,8 +155,17 @@ pub trait NewtonProblem {
     fn max_step_length(&mut self, _x: &[f64], _step: &[f64]) -> f64 {
         1.0
     }
-    /// The Hessian's sparsity pattern (never changes; every diagonal entry must be stored).
+    /// The Hessian's sparsity pattern (every diagonal entry must be stored). It changes only in
+    /// [`NewtonProblem::update_pattern`].
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize>;
+    /// Make [`NewtonProblem::pattern`] hold every entry of the Hessians at x (those of terms that
+    /// couple unknowns only where they are close, such as self-contact pairs), growing it where it
+    /// does not, and say whether it changed: Newton then analyses the new pattern (one symbolic
+    /// analysis per pattern) and forgets its held factor. Called before every Hessian. The default
+    /// keeps the pattern and returns `false`.
+    fn update_pattern(&mut self, _x: &[f64]) -> bool {
+        false
+    }
     /// Refill the Hessian's values at x and return it.
     fn hessian(&mut self, x: &[f64]) -> SparseColMatRef<'_, usize, f64>;
     /// The positive diagonal D of the shift H + μ D, one entry per unknown (the masses for backward
@@ -1148,6 +1157,47 @@ impl Newton {
         })
     }
 
+    /// Analyse a new pattern of `problem` (after [`NewtonProblem::update_pattern`] changed it): the
+    /// factor's symbolic analysis and the buffers as in [`Newton::new`], the held factor forgotten,
+    /// and the multilevel path prepared again at `x` where it is taken.
+    fn adopt_pattern(
+        &mut self,
+        problem: &mut impl NewtonProblem,
+        x: &[f64],
+    ) -> Result<(), Failure> {
+        let pattern = problem.pattern();
+        let n = pattern.ncols();
+        self.diagonal_slots = (0..n)
+            .map(|j| {
+                let start = pattern.col_ptr()[j];
+                let rows = pattern.row_idx_of_col_raw(j);
+                let k = rows
+                    .iter()
+                    .position(|&i| i == j)
+                    .expect("every diagonal entry is stored");
+                start + k
+            })
+            .collect();
+        let nnz = pattern.compute_nnz();
+        self.hessian.resize(nnz, 0.0);
+        self.shifted.resize(nnz, 0.0);
+        self.cholesky =
+            LinearSolver::analyze(pattern, self.params.cholesky, self.params.multilevel_fill)
+                .map_err(Failure::Factorization)?;
+        self.forget_held_factor();
+        if !problem.has_convexified_hessian() {
+            self.cholesky
+                .fall_back_to_direct(problem.pattern(), self.params.cholesky)
+                .map_err(Failure::Factorization)?;
+        }
+        if let Some(multilevel) = self.cholesky.multilevel_mut() {
+            multilevel
+                .prepare(problem, x)
+                .map_err(Failure::Factorization)?;
+        }
+        Ok(())
+    }
+
     /// The multilevel solve standing in for a Cholesky factor above the memory budget
     /// ([`CholeskyParams::memory_budget`]) or the fill bound ([`NewtonParams::multilevel_fill`];
     /// docs/solvers.md §2.5); `None` on the direct path.
@@ -1577,6 +1627,9 @@ impl Newton {
         x: &mut [f64],
         report: &mut NewtonReport,
     ) -> Result<(), Failure> {
+        if problem.update_pattern(x) {
+            self.adopt_pattern(problem, x)?;
+        }
         if !problem.has_convexified_hessian() {
             // Chosen for its fill, the multilevel path gives way to the factor (which fits the
             // budget) for a problem it cannot solve.
@@ -1670,6 +1723,9 @@ impl Newton {
             if report.iterations >= p.max_iterations {
                 finish(report, StopReason::IterationLimit);
                 return Ok(());
+            }
+            if report.iterations > 0 && problem.update_pattern(x) {
+                self.adopt_pattern(problem, x)?;
             }
             // Whether this iteration tries the exact Hessian under ProjectedThenExact.
             let mut exact_try = p.indefinite == IndefinitePolicy::ProjectedThenExact

@@ -26,13 +26,24 @@ pub enum ParamError {
         /// The allowed range, in words.
         allowed: &'static str,
     },
+    /// A structured input that does not fit (an index out of range, a length mismatch, a
+    /// dimension a model does not support).
+    #[error("{field}: {problem}")]
+    Input {
+        /// The field, as `Struct::field`.
+        field: &'static str,
+        /// What is wrong, naming the offending entry.
+        problem: String,
+    },
 }
 
 impl ParamError {
     /// The field that was rejected.
     pub fn field(&self) -> &'static str {
         match self {
-            ParamError::Real { field, .. } | ParamError::Count { field, .. } => field,
+            ParamError::Real { field, .. }
+            | ParamError::Count { field, .. }
+            | ParamError::Input { field, .. } => field,
         }
     }
 }

@@ -55,7 +55,6 @@
 
 mod error;
 mod graded;
-mod intersect;
 mod lattice;
 mod manifold;
 mod quality;

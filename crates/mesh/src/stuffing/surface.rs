@@ -180,7 +180,7 @@ fn check_vertex_fans(
 
 /// The first pair of triangles (by the lower index, then the other) that intersect away from the
 /// vertices they share, if any. Candidate pairs come from parry's BVH (bounding boxes that
-/// overlap); each is decided by exact predicates (module `intersect`).
+/// overlap); each is decided by exact predicates (module `crate::intersection`).
 fn first_self_intersection(
     shape: &ParryMesh,
     triangles: &[[u32; 3]],
@@ -196,7 +196,7 @@ fn first_self_intersection(
                 .intersect_aabb(&aabb)
                 .filter(|&j| j as usize > i)
                 .filter(|&j| {
-                    super::intersect::triangles_intersect(
+                    crate::intersection::triangles_intersect(
                         triangles[i],
                         triangles[j as usize],
                         |v| positions[v as usize],

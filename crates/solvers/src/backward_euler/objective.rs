@@ -28,10 +28,13 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 0.5 * self.masses[v] * (self.x[v] - self.y[v]).norm_squared()
             })
             .sum();
-        let contact = match &self.contact {
+        let mut contact = match &self.contact {
             Some(contact) => contact.energy(self.free.free_vertices(), &self.x),
             None => 0.0,
         };
+        if let Some(terms) = &mut self.self_contact {
+            contact += terms.energy(&self.x);
+        }
         inertia
             + self.h
                 * self.h
@@ -87,12 +90,15 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             });
             0.5 * this.h * this.dashpot * sum
         };
-        let contact = match &self.contact {
+        let mut contact = match &self.contact {
             Some(contact) => {
                 contact.energy_change(self.free.free_vertices(), &self.x, &self.trial_positions)
             }
             None => 0.0,
         };
+        if let Some(terms) = &mut self.self_contact {
+            contact += terms.energy_change(&self.x, &self.trial_positions);
+        }
         inertia + self.h * self.h * (energy + contact) + dashpot
     }
 
@@ -114,6 +120,9 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         if let Some(contact) = &self.contact {
             // The contact force −∇E_c joins the spring forces.
             contact.add_gradient(self.free.free_vertices(), &self.x, -1.0, &mut self.force);
+        }
+        if let Some(terms) = &mut self.self_contact {
+            terms.add_gradient(&self.x, -1.0, &mut self.force);
         }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
@@ -157,17 +166,22 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             self.force[i] += f;
             self.force[j] += f;
         }
-        if let Some(contact) = &self.contact {
+        if self.contact.is_some() || self.self_contact.is_some() {
             // The contact forces' magnitudes, per vertex (their rounding is relative to them).
             for g in self.contact_scratch.iter_mut() {
                 *g = SVector::zeros();
             }
-            contact.add_gradient(
-                self.free.free_vertices(),
-                &self.x,
-                1.0,
-                &mut self.contact_scratch,
-            );
+            if let Some(contact) = &self.contact {
+                contact.add_gradient(
+                    self.free.free_vertices(),
+                    &self.x,
+                    1.0,
+                    &mut self.contact_scratch,
+                );
+            }
+            if let Some(terms) = &mut self.self_contact {
+                terms.add_gradient(&self.x, 1.0, &mut self.contact_scratch);
+            }
             for (f, g) in self.force.iter_mut().zip(&self.contact_scratch) {
                 *f += g.abs();
             }
@@ -201,21 +215,51 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     /// With obstacles, [`super::TIME_OF_IMPACT_SHARE`] of the first time at which a free vertex
     /// moving along the step would reach an obstacle (at most 1); 1 without.
     fn max_step_length(&mut self, xf: &[f64], step: &[f64]) -> f64 {
-        if self.contact.is_none() {
+        if self.contact.is_none() && self.self_contact.is_none() {
             return 1.0;
         }
         self.expand(xf);
         let full = self.counter.is_some();
+        // Pinned vertices do not move.
+        for &p in self.free.pinned() {
+            self.contact_scratch[p as usize] = SVector::zeros();
+        }
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let o = Self::offset(full, f, v as usize);
             self.contact_scratch[v as usize] = SVector::from_column_slice(&step[o..o + D]);
         }
-        let contact = self.contact.as_ref().expect("checked above");
-        contact.max_step(self.free.free_vertices(), &self.x, &self.contact_scratch)
+        let mut longest = match &self.contact {
+            Some(contact) => {
+                contact.max_step(self.free.free_vertices(), &self.x, &self.contact_scratch)
+            }
+            None => 1.0,
+        };
+        if let Some(terms) = &mut self.self_contact {
+            longest = longest.min(terms.max_step(&self.x, &self.contact_scratch));
+        }
+        longest
     }
 
     fn pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
         self.assembly().pattern.symbolic()
+    }
+
+    /// With self-contact, the vertex pairs of the pairs within d̂ at `xf` join the pattern's
+    /// links (they are kept: the pattern only grows, so a contact that comes and goes costs one
+    /// analysis).
+    fn update_pattern(&mut self, xf: &[f64]) -> bool {
+        if self.self_contact.is_none() {
+            return false;
+        }
+        self.expand(xf);
+        let mut wanted = std::mem::take(&mut self.wanted_links);
+        wanted.clear();
+        if let Some(terms) = &mut self.self_contact {
+            terms.links(&self.x, &mut wanted);
+        }
+        let changed = self.grow_pattern(&mut wanted);
+        self.wanted_links = wanted;
+        changed
     }
 
     fn hessian(&mut self, xf: &[f64]) -> SparseColMatRef<'_, usize, f64> {
@@ -289,14 +333,14 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     /// Nothing with contact ([`BackwardEulerStep::set_contact`]): the relaxation's per-vertex
     /// sweeps and patch solves do not see the obstacles.
     fn prepare_relaxation(&mut self, relaxation: Relaxation) {
-        if self.contact.is_none() {
+        if self.contact.is_none() && self.self_contact.is_none() {
             self.prepare_patches(relaxation)
         }
     }
 
     /// `None` (nothing done) with contact: see [`NewtonProblem::prepare_relaxation`].
     fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
-        if self.contact.is_some() {
+        if self.contact.is_some() || self.self_contact.is_some() {
             return None;
         }
         self.relax_all(xf, relaxation)
@@ -397,6 +441,25 @@ impl<const D: usize> BackwardEulerStep<D> {
                     pattern.add_diagonal_block(c, &block, values);
                 },
             );
+        }
+        if let Some(terms) = &mut self.self_contact {
+            // The pairs' projected blocks; the pattern holds them (update_pattern).
+            let full = self.counter.is_some();
+            let free = &self.free;
+            let column = |v: usize| {
+                if full {
+                    v
+                } else {
+                    free.free_index(v).expect("a free vertex")
+                }
+            };
+            terms.for_each_hessian_block(&self.x, self.h * self.h, |i, j, block| {
+                let stored = pattern.add_block(column(i), column(j), &block, values);
+                debug_assert!(
+                    stored,
+                    "the pattern lacks the self-contact block ({i}, {j})"
+                );
+            });
         }
         if let Some(counter) = &self.counter {
             // Pinned rows and columns: m_p I on the diagonal, zero elsewhere.
