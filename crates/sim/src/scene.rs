@@ -264,23 +264,24 @@ impl<const D: usize> PinPath<D> {
     }
 
     /// Where a vertex of reference position `reference` (m) is at time `t`:
-    /// c + R(t)(x₀ − c) + d(t). Without rotation, exactly x₀ + d(t).
+    /// c + R(t)(x₀ − c) + d(t). Without rotation, or at 0°, exactly x₀ + d(t).
     pub fn position(&self, reference: &SVector<f64, D>, t: f64) -> SVector<f64, D> {
-        let Some(turn) = self.turn() else {
+        let radians = self.angle_degrees(t).to_radians();
+        let Some(turn) = self.turn().filter(|_| radians != 0.0) else {
             return reference + self.offset(t);
         };
-        let radians = self.angle_degrees(t).to_radians();
         turn.point + rotate(&(reference - turn.point), &turn.unit_axis(), radians) + self.offset(t)
     }
 
     /// The reference position x₀ (m) of a vertex that is at `position` at time `t`: the inverse
-    /// of [`PinPath::position`], x₀ = c + R(t)ᵀ(x − d(t) − c). Without rotation, exactly
-    /// x − d(t).
+    /// of [`PinPath::position`], x₀ = c + R(t)ᵀ(x − d(t) − c). Without rotation, or at 0°,
+    /// exactly x − d(t): a run that starts unturned takes its start positions as references, bit
+    /// for bit.
     pub fn reference(&self, position: &SVector<f64, D>, t: f64) -> SVector<f64, D> {
-        let Some(turn) = self.turn() else {
+        let radians = self.angle_degrees(t).to_radians();
+        let Some(turn) = self.turn().filter(|_| radians != 0.0) else {
             return position - self.offset(t);
         };
-        let radians = self.angle_degrees(t).to_radians();
         turn.point
             + rotate(
                 &(position - self.offset(t) - turn.point),
@@ -872,6 +873,10 @@ mod tests {
         assert_eq!(path.angle_degrees(1.75), 630.0);
         assert_eq!(path.angle_degrees(3.0), 720.0);
         assert_eq!(path.angle_degrees(-1.0), 0.0);
+        // Unturned, the reference is the position itself, bit for bit (c + (x − c) is not).
+        let odd = Vector3::new(0.1, 0.3, 0.7);
+        assert_eq!(path.reference(&odd, 0.0), odd);
+        assert_eq!(path.position(&odd, 0.0), odd);
         // Round-off of sin 2π and sin 4π on a 1 m lever: a few 1e-16 m.
         let close = |a: Vector3<f64>, b: Vector3<f64>| (a - b).norm() < 1e-14;
         assert!(close(path.position(&x0, 1.0), x0));
