@@ -303,6 +303,9 @@ impl NewtonCg {
                 forcing = self.forcing(forcing, gradient / previous_gradient, gradient);
             }
             previous_gradient = gradient;
+            // Only the products need the pattern (no symbolic analysis here): grow it so that
+            // the Hessian holds every term at x (self-contact pairs).
+            problem.update_pattern(x);
             let hessian = Symmetric(problem.hessian(x));
             let truncations = report.negative_curvature;
             if !self.truncated_cg(&hessian, preconditioner, forcing, &mut report) {
