@@ -128,3 +128,45 @@ fn integrators_without_a_barrier_refuse_self_contact() {
         }
     }
 }
+
+#[test]
+fn serial_and_parallel_runs_give_the_same_frames() {
+    let frames = |parallel: bool| {
+        let (scene, state) = sheet_drop(6, true);
+        let settings = Settings {
+            integrator: Integrator::Newton,
+            parallel,
+            ..Settings::default()
+        };
+        let mut sim = Simulation::new(scene, state, settings).unwrap();
+        (0..12)
+            .map(|_| {
+                sim.step().unwrap();
+                sim.state().positions.clone()
+            })
+            .collect::<Vec<_>>()
+    };
+    assert!(
+        frames(true) == frames(false),
+        "serial and parallel frames differ"
+    );
+}
+
+#[test]
+fn a_start_that_intersects_itself_is_refused() {
+    let (scene, mut state) = sheet_drop(4, true);
+    // Pull the upper sheet's first vertex through the lower sheet (still above the ground).
+    let first_upper = state.positions.len() / 2;
+    state.positions[first_upper].y = 0.005;
+    let settings = Settings {
+        integrator: Integrator::Newton,
+        ..Settings::default()
+    };
+    match Simulation::new(scene, state, settings) {
+        Err(SimError::InvalidParameter { name, value, .. }) => {
+            assert_eq!(name, "initial positions");
+            assert!(value.contains("intersect"), "{value}");
+        }
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+}

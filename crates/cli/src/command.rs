@@ -22,8 +22,8 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use output::{
     progress_bar, remove_leftovers, render_preview, write_atomically, write_summary, write_timings,
-    OutputError, ResidualRecord, RunSummary, RunTimings, ScenePreview, SolverSettingsRecord,
-    StepRecord, StepTiming,
+    OutputError, ResidualRecord, RunSummary, RunTimings, ScenePreview, SelfContactRecord,
+    SolverSettingsRecord, StepRecord, StepTiming,
 };
 
 /// The scene `hooke run` uses without an argument.
@@ -642,11 +642,20 @@ fn run_setup<const D: usize>(
             kinetic_energy: energy.kinetic,
             potential_energy: energy.potential,
             contact_energy: (sim.settings().integrator.uses_contact_barrier()
-                && !sim.scene().contacts().is_empty())
+                && (!sim.scene().contacts().is_empty() || sim.self_contact_state().is_some()))
             .then_some(energy.contact),
             total_energy: energy.total,
             contact_distance: (!sim.scene().contacts().is_empty())
                 .then(|| sim.smallest_contact_distance()),
+            self_contact: sim.self_contact_state().map(|c| SelfContactRecord {
+                smallest_distance: c
+                    .smallest_distance
+                    .is_finite()
+                    .then_some(c.smallest_distance),
+                point_triangle_pairs: c.point_triangle_pairs,
+                edge_edge_pairs: c.edge_edge_pairs,
+                stiffness: c.stiffness,
+            }),
             inverted_tetrahedra: (!sim.scene().mesh().tetrahedra().is_empty())
                 .then(|| sim.scene().inverted_tetrahedra(&sim.state().positions)),
             max_stretch: sim.scene().max_stretch(sim.state()),

@@ -44,6 +44,13 @@ pub(crate) fn check_positions<const D: usize>(
             count: positions.len(),
         });
     }
+    check_finite(positions)
+}
+
+/// [`MeshError::NonFiniteCoordinate`] for the first NaN or infinite coordinate.
+pub(crate) fn check_finite<const D: usize>(
+    positions: &[nalgebra::SVector<f64, D>],
+) -> Result<(), MeshError> {
     for (vertex, p) in positions.iter().enumerate() {
         for (axis, &value) in p.iter().enumerate() {
             if !value.is_finite() {

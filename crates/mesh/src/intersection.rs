@@ -14,7 +14,7 @@ use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
 use rayon::prelude::*;
 use robust::{orient2d, orient3d, Coord, Coord3D};
 
-use crate::elements::check_indices;
+use crate::elements::{check_finite, check_indices};
 use crate::{ElementKind, MeshError, Vec3, DEGENERACY_TOLERANCE};
 
 fn c3(p: &Vec3) -> Coord3D<f64> {
@@ -285,17 +285,7 @@ pub(crate) fn triangles_intersect(
 /// Check a triangle soup for the queries: finite coordinates, indices in range, three distinct
 /// vertices per triangle, and triangle numbers that fit in a `u32`.
 fn check_soup(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), MeshError> {
-    for (vertex, p) in positions.iter().enumerate() {
-        for (axis, &value) in p.iter().enumerate() {
-            if !value.is_finite() {
-                return Err(MeshError::NonFiniteCoordinate {
-                    vertex,
-                    axis,
-                    value,
-                });
-            }
-        }
-    }
+    check_finite(positions)?;
     if triangles.len() > u32::MAX as usize {
         return Err(MeshError::InvalidParameter {
             name: "triangles",

@@ -41,6 +41,7 @@
 //! L-BFGS, like projective dynamics, runs to its iteration budget and keeps the last iterate.
 
 use hooke_assembly::FreeDofs;
+use hooke_solvers::backward_euler::SelfContactState;
 use hooke_solvers::{
     BackwardEulerStep, ChebyshevParams, ChebyshevPd, Lbfgs, LbfgsParams, Newton, NewtonCg,
     NewtonCgParams, NewtonParams, NewtonProblem, PdParams, Preconditioner, ProjectiveDynamics,
@@ -515,6 +516,20 @@ impl<const D: usize> BackwardEuler<D> {
             | Solver::Chebyshev { pd, .. }
             | Solver::PreconditionedByPd { pd, .. } => Some(pd.factor_time()),
             Solver::Newton { .. } => None,
+        }
+    }
+
+    /// What self-contact does at `positions` (`None` without it, or for a solver without the
+    /// barrier objective).
+    pub(crate) fn self_contact_state(
+        &mut self,
+        positions: &[SVector<f64, D>],
+    ) -> Option<SelfContactState> {
+        match &mut self.solver {
+            Solver::Newton { objective, .. } | Solver::PreconditionedByPd { objective, .. } => {
+                objective.self_contact_state(positions)
+            }
+            _ => None,
         }
     }
 

@@ -334,7 +334,8 @@ pub fn cloth_twist(n: usize) -> Result<Setup<3>, SimError> {
     let scene = Scene::new(mesh, FRAME_TIME_STEP)?
         .with_pins(Pins::Vertices(fixed))?
         .with_pin_path(Pins::Vertices(turning), path)?
-        .with_forces(vec![gravity_3d()])?;
+        .with_forces(vec![gravity_3d()])?
+        .with_self_contact(Some(SelfContact::default()))?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()

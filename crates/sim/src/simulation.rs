@@ -13,6 +13,7 @@ use crate::integrator::{Integrator, Settings};
 use crate::linearized::Linearized;
 use crate::stability::{stability_bound, StabilityBound};
 use crate::{Energy, Scene, SimError, State};
+use hooke_solvers::backward_euler::SelfContactState;
 
 mod snapshot;
 pub use snapshot::{HalvingMemory, Snapshot};
@@ -77,6 +78,8 @@ pub struct Simulation<const D: usize> {
     projection: Option<StepProjection<D>>,
     /// The state at the start of the current step, restored if the step fails.
     before: State<D>,
+    /// What self-contact does at the current state (scenes with self-contact).
+    self_contact: Option<SelfContactState>,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -155,7 +158,7 @@ impl<const D: usize> Simulation<D> {
         } else {
             1
         };
-        let implicit = match settings.integrator {
+        let mut implicit = match settings.integrator {
             Integrator::Newton | Integrator::Lbfgs | Integrator::NewtonCg => {
                 let minimizer = match settings.integrator {
                     Integrator::Newton => Minimizer::Newton(settings.newton),
@@ -193,6 +196,9 @@ impl<const D: usize> Simulation<D> {
         if settings.integrator.contact_in_solve() && !scene.contacts().is_empty() {
             check_outside_obstacles(&scene, &state.positions)?;
         }
+        if scene.self_contact().is_some() {
+            check_no_self_intersection(&scene, &state.positions)?;
+        }
         let projection = if !scene.contacts().is_empty()
             && !settings.integrator.is_explicit()
             && !settings.integrator.contact_in_solve()
@@ -227,6 +233,9 @@ impl<const D: usize> Simulation<D> {
         if let Some(factor) = settings.energy_limit {
             crate::error::non_negative("energy limit", factor)?;
         }
+        let self_contact = implicit
+            .as_mut()
+            .and_then(|i| i.self_contact_state(&state.positions));
         let energy_limit = match settings.energy_limit {
             Some(factor) if !has_sources && !settings.allow_unstable => {
                 let mut min = state.positions[0];
@@ -242,7 +251,8 @@ impl<const D: usize> Simulation<D> {
                         scene.barrier_energy(&state.positions)
                     } else {
                         0.0
-                    };
+                    }
+                    + self_contact.map_or(0.0, |c| c.energy);
                 Some((initial, initial + factor * (initial.abs() + scale)))
             }
             _ => None,
@@ -265,7 +275,21 @@ impl<const D: usize> Simulation<D> {
             next_pinned: vec![SVector::zeros(); n],
             energy_limit,
             projection,
+            self_contact,
         })
+    }
+
+    /// What self-contact does at the current state: its barrier energy, the smallest distance
+    /// between two primitives of the surface, the pairs within d̂ and κ; `None` without it.
+    pub fn self_contact_state(&self) -> Option<SelfContactState> {
+        self.self_contact
+    }
+
+    /// Recompute [`Simulation::self_contact_state`] for the current positions.
+    fn refresh_self_contact(&mut self) {
+        if let Some(implicit) = &mut self.implicit {
+            self.self_contact = implicit.self_contact_state(&self.state.positions);
+        }
     }
 
     /// The scene.
@@ -373,7 +397,8 @@ impl<const D: usize> Simulation<D> {
     pub fn energy(&self) -> Energy {
         let mut energy = self.scene.energy(&self.state);
         if self.settings.integrator.uses_contact_barrier() {
-            energy.contact = self.scene.barrier_energy(&self.state.positions);
+            energy.contact = self.scene.barrier_energy(&self.state.positions)
+                + self.self_contact.map_or(0.0, |c| c.energy);
             energy.total += energy.contact;
         }
         energy
@@ -408,6 +433,9 @@ impl<const D: usize> Simulation<D> {
                 .copy_from_slice(&self.before.velocities);
             self.state.time = self.before.time;
             self.steps_taken = steps_before;
+            if self.self_contact.is_some() {
+                self.refresh_self_contact();
+            }
         }
         result.map_err(|e| e.at_step(steps_before + 1))
     }
@@ -486,6 +514,9 @@ impl<const D: usize> Simulation<D> {
         self.state.time = self.start_time + self.steps_taken as f64 * self.scene.time_step();
         check_finite(&self.state, self.steps_taken)?;
         self.check_bounded()?;
+        if self.self_contact.is_some() {
+            self.refresh_self_contact();
+        }
         if let Some((initial, limit)) = self.energy_limit {
             let energy = self.energy().total;
             if energy.is_nan() || energy > limit {
@@ -691,4 +722,27 @@ fn check_outside_obstacles<const D: usize>(
         format!("vertex {v} at signed distance {d:e} m from contact[{k}]"),
         "every free vertex must start strictly outside every obstacle (the contact barrier is          infinite on and inside a surface): move the mesh or the obstacle",
     ))
+}
+
+/// Refuse a start whose surface intersects itself (decided exactly): self-contact keeps a surface
+/// free of intersections, it cannot undo one.
+fn check_no_self_intersection<const D: usize>(
+    scene: &Scene<D>,
+    positions: &[SVector<f64, D>],
+) -> Result<(), SimError> {
+    let points: Vec<nalgebra::Vector3<f64>> = positions
+        .iter()
+        .map(|p| nalgebra::Vector3::new(p[0], p[1], p[2]))
+        .collect();
+    let pairs =
+        hooke_mesh::intersection::intersecting_triangle_pairs(&points, &scene.surface_triangles())
+            .map_err(SimError::Mesh)?;
+    match pairs.first() {
+        Some([a, b]) => Err(SimError::invalid(
+            "initial positions",
+            format!("surface triangles {a} and {b} intersect"),
+            "self-contact needs a surface free of intersections at the start",
+        )),
+        None => Ok(()),
+    }
 }

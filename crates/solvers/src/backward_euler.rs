@@ -20,8 +20,8 @@ mod self_contact;
 use contact::StepContact;
 pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
-pub use self_contact::SelfContactModel;
 use self_contact::StepSelfContact;
+pub use self_contact::{SelfContactModel, SelfContactState};
 
 /// The default θ of [`BackwardEulerStep::set_definite_share`]: half of every vertex's mass may
 /// hold its compressed springs, half is kept as the margin of definiteness.
@@ -144,10 +144,14 @@ pub struct BackwardEulerStep<const D: usize> {
     contact: Option<Box<StepContact<D>>>,
     /// Self-contact barriers ([`BackwardEulerStep::set_self_contact`]); `None`: none, and no cost.
     self_contact: Option<Box<StepSelfContact>>,
-    /// The vertex pairs the Hessian's pattern holds beyond the springs (self-contact pairs seen so
-    /// far), sorted, and the pairs the last pattern update asked for (scratch).
+    /// The vertex pairs the Hessian's pattern holds beyond the springs (the self-contact pairs
+    /// seen in this step), sorted, and the pairs the last pattern update asked for (scratch).
     links: Vec<[u32; 2]>,
     wanted_links: Vec<[u32; 2]>,
+    /// Set by [`BackwardEulerStep::set_step`]: the next pattern update replaces the links instead
+    /// of adding to them, so that the pattern (and with it the factor's ordering and its rounding)
+    /// depends on the step's own iterates only, not on how earlier steps were run.
+    links_replaced_next: bool,
     /// Per vertex, a contact term's gradient or a trial move (scratch of the contact terms).
     contact_scratch: Vec<SVector<f64, D>>,
     /// The unknowns of a candidate initial guess (sized on first use).
@@ -277,6 +281,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             self_contact: None,
             links: Vec::new(),
             wanted_links: Vec::new(),
+            links_replaced_next: false,
             contact_scratch: Vec::new(),
             start_guess: Vec::new(),
             free,
@@ -297,21 +302,26 @@ impl<const D: usize> BackwardEulerStep<D> {
         })
     }
 
-    /// Add `wanted` (vertex pairs, lower index first) to the pattern's links; if any was new, make
-    /// the pattern again (and the counter-forces on it). Returns whether the pattern changed.
-    fn grow_pattern(&mut self, wanted: &mut Vec<[u32; 2]>) -> bool {
+    /// Add `wanted` (vertex pairs, lower index first) to the pattern's links, or with `replace`
+    /// make them the links; if the links changed, make the pattern again (and the counter-forces
+    /// on it). Returns whether the pattern changed.
+    fn update_links(&mut self, wanted: &mut Vec<[u32; 2]>, replace: bool) -> bool {
         wanted.sort_unstable();
         wanted.dedup();
-        let links = &self.links;
-        if wanted.iter().all(|l| links.binary_search(l).is_ok()) {
-            return false;
+        if replace {
+            if *wanted == self.links {
+                return false;
+            }
+            self.links.clone_from(wanted);
+        } else {
+            let links = &self.links;
+            if wanted.iter().all(|l| links.binary_search(l).is_ok()) {
+                return false;
+            }
+            self.links.extend_from_slice(wanted);
+            self.links.sort_unstable();
+            self.links.dedup();
         }
-        let mut merged = Vec::with_capacity(self.links.len() + wanted.len());
-        merged.extend_from_slice(&self.links);
-        merged.extend_from_slice(wanted);
-        merged.sort_unstable();
-        merged.dedup();
-        self.links = merged;
         let n = self.free.vertex_count();
         if self.counter.is_some() {
             let built = HessianAssembly::new(HessianPattern::with_links(
@@ -398,6 +408,7 @@ impl<const D: usize> BackwardEulerStep<D> {
     ) {
         self.y.copy_from_slice(y);
         self.x.copy_from_slice(positions);
+        self.links_replaced_next = self.self_contact.is_some();
         let full = self.counter.is_some();
         if let Some(v) = velocities {
             assert_eq!(v.len(), positions.len(), "one velocity per vertex");
@@ -627,24 +638,21 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.self_contact.as_ref().map(|c| &c.model)
     }
 
-    /// The smallest distance (m) between two primitives of the surface at the unknowns `xf`, among
-    /// the pairs within 1.5 d̂ (∞ without self-contact or without such a pair).
-    pub fn smallest_self_distance(&mut self, xf: &[f64]) -> f64 {
-        self.expand(xf);
-        match &mut self.self_contact {
-            Some(terms) => terms.smallest_distance(&self.x),
-            None => f64::INFINITY,
-        }
-    }
-
-    /// The numbers of point–triangle and edge–edge pairs within d̂ at the unknowns `xf` ((0, 0)
-    /// without self-contact).
-    pub fn self_contact_pairs(&mut self, xf: &[f64]) -> (usize, usize) {
-        self.expand(xf);
-        match &mut self.self_contact {
-            Some(terms) => terms.active_counts(&self.x),
-            None => (0, 0),
-        }
+    /// What self-contact does at the full positions `positions` (one per vertex, m): `None`
+    /// without self-contact.
+    pub fn self_contact_state(
+        &mut self,
+        positions: &[SVector<f64, D>],
+    ) -> Option<SelfContactState> {
+        let terms = self.self_contact.as_mut()?;
+        let (point_triangle_pairs, edge_edge_pairs) = terms.active_counts(positions);
+        Some(SelfContactState {
+            energy: terms.energy(positions),
+            smallest_distance: terms.smallest_distance(positions),
+            point_triangle_pairs,
+            edge_edge_pairs,
+            stiffness: terms.model.stiffness,
+        })
     }
 
     /// The contact model, if any ([`BackwardEulerStep::set_contact`]).

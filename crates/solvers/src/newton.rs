@@ -1092,6 +1092,25 @@ pub struct Newton {
     exact_backoff: u32,
 }
 
+/// The position of every diagonal entry in the value array of `pattern`.
+///
+/// # Panics
+/// If a diagonal entry is not stored.
+#[track_caller]
+fn diagonal_slots(pattern: SymbolicSparseColMatRef<'_, usize>) -> Vec<usize> {
+    (0..pattern.ncols())
+        .map(|j| {
+            let start = pattern.col_ptr()[j];
+            let k = pattern
+                .row_idx_of_col_raw(j)
+                .iter()
+                .position(|&i| i == j)
+                .expect("every diagonal entry is stored");
+            start + k
+        })
+        .collect()
+}
+
 /// The longest pause, in chances passed over, after consecutive refused reuses.
 const MAX_REUSE_BACKOFF: u32 = 16;
 
@@ -1123,17 +1142,7 @@ impl Newton {
     ) -> Result<Self, NewtonError> {
         params.validate()?;
         let n = pattern.ncols();
-        let diagonal_slots = (0..n)
-            .map(|j| {
-                let start = pattern.col_ptr()[j];
-                let rows = pattern.row_idx_of_col_raw(j);
-                let k = rows
-                    .iter()
-                    .position(|&i| i == j)
-                    .expect("every diagonal entry is stored");
-                start + k
-            })
-            .collect();
+        let diagonal_slots = diagonal_slots(pattern);
         let nnz = pattern.compute_nnz();
         Ok(Newton {
             cholesky: LinearSolver::analyze(pattern, params.cholesky, params.multilevel_fill)?,
@@ -1166,18 +1175,7 @@ impl Newton {
         x: &[f64],
     ) -> Result<(), Failure> {
         let pattern = problem.pattern();
-        let n = pattern.ncols();
-        self.diagonal_slots = (0..n)
-            .map(|j| {
-                let start = pattern.col_ptr()[j];
-                let rows = pattern.row_idx_of_col_raw(j);
-                let k = rows
-                    .iter()
-                    .position(|&i| i == j)
-                    .expect("every diagonal entry is stored");
-                start + k
-            })
-            .collect();
+        self.diagonal_slots = diagonal_slots(pattern);
         let nnz = pattern.compute_nnz();
         self.hessian.resize(nnz, 0.0);
         self.shifted.resize(nnz, 0.0);

@@ -20,7 +20,8 @@ pub use preview::{
 };
 pub use progress::progress_bar;
 pub use summary::{
-    write_summary, RateRecord, ResidualRecord, RunSummary, SolverSettingsRecord, StepRecord,
+    write_summary, RateRecord, ResidualRecord, RunSummary, SelfContactRecord, SolverSettingsRecord,
+    StepRecord,
 };
 pub use timings::{read_timings, write_timings, RunTimings, StepTiming};
 

@@ -133,6 +133,11 @@ pub struct StepRecord {
     /// inside one; absent for scenes without obstacles and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_distance: Option<f64>,
+    /// Self-contact at the end of the step (scenes with self-contact; absent otherwise and in older
+    /// files): the smallest distance between two primitives of the surface (m), the pairs within
+    /// d̂ and the barrier's stiffness κ (N/m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub self_contact: Option<SelfContactRecord>,
     /// Tetrahedra turned inside out (signed volume of the opposite sign to the rest mesh's, or
     /// zero): present for tetrahedral meshes, absent otherwise and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -169,6 +174,20 @@ pub struct StepRecord {
     pub halved_into: Option<usize>,
     // Wall times are in `timings.json` (see `super::timings`): a summary holds only results, so
     // that a run resumed from a checkpoint writes the same summary as one that was not stopped.
+}
+
+/// Self-contact at the end of a step ([`StepRecord::self_contact`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SelfContactRecord {
+    /// The smallest distance between the primitives of a pair (m), among the pairs within 1.5 d̂;
+    /// `null` (∞) when no pair is that close.
+    pub smallest_distance: Option<f64>,
+    /// Point–triangle pairs within d̂.
+    pub point_triangle_pairs: usize,
+    /// Edge–edge pairs within d̂.
+    pub edge_edge_pairs: usize,
+    /// The barrier's stiffness κ (N/m).
+    pub stiffness: f64,
 }
 
 /// Reads a number that `serde_json` may have written as `null` (NaN or ±infinity) as NaN.
@@ -228,6 +247,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.375,
                     contact_distance: None,
+                    self_contact: None,
                     inverted_tetrahedra: None,
                     max_stretch: 1.0625,
                     solver_iterations: Some(7),
@@ -245,6 +265,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.5,
                     contact_distance: None,
+                    self_contact: None,
                     inverted_tetrahedra: None,
                     max_stretch: 1.1,
                     solver_iterations: None,

@@ -245,8 +245,9 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     /// With self-contact, the vertex pairs of the pairs within d̂ at `xf` join the pattern's
-    /// links (they are kept: the pattern only grows, so a contact that comes and goes costs one
-    /// analysis).
+    /// links. Within a step they are kept (the pattern only grows, so a contact that comes and goes
+    /// costs one analysis); the first update of a step starts from the pairs at its first iterate,
+    /// so the pattern never depends on earlier steps (a resumed run factors the same matrices).
     fn update_pattern(&mut self, xf: &[f64]) -> bool {
         if self.self_contact.is_none() {
             return false;
@@ -257,7 +258,8 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         if let Some(terms) = &mut self.self_contact {
             terms.links(&self.x, &mut wanted);
         }
-        let changed = self.grow_pattern(&mut wanted);
+        let replace = std::mem::take(&mut self.links_replaced_next);
+        let changed = self.update_links(&mut wanted, replace);
         self.wanted_links = wanted;
         changed
     }

@@ -39,6 +39,23 @@ pub struct SelfContactModel {
     pub stiffness: f64,
 }
 
+/// What self-contact does at one configuration
+/// ([`super::BackwardEulerStep::self_contact_state`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfContactState {
+    /// The barrier energy Σ κ b(d) over the pairs within d̂ (J), without the h² of Φ.
+    pub energy: f64,
+    /// The smallest distance between the primitives of a pair (m), among the pairs within 1.5 d̂
+    /// (∞ if there is none).
+    pub smallest_distance: f64,
+    /// The point–triangle pairs within d̂.
+    pub point_triangle_pairs: usize,
+    /// The edge–edge pairs within d̂.
+    pub edge_edge_pairs: usize,
+    /// The barrier's stiffness κ (N/m).
+    pub stiffness: f64,
+}
+
 /// A pair of the candidate list with its kind.
 #[derive(Clone, Copy, Debug)]
 enum Pair {
