@@ -424,6 +424,9 @@ impl<const D: usize> BackwardEuler<D> {
         objective.set_parallel(parallel);
         objective.set_contact(scene.contact_model(), mesh.masses());
         objective
+            .set_contact_surface(scene.surface_triangles())
+            .map_err(SimError::SolverParameter)?;
+        objective
             .set_self_contact(scene.self_contact_model())
             .map_err(SimError::SolverParameter)?;
         let unknowns = vec![0.0; objective.dim()];

@@ -596,8 +596,8 @@ impl<const D: usize> Scene<D> {
     }
 
     /// The barrier energy Σ κ̂ m_v b(d) (J) of the free vertices at `positions` under
-    /// [`Scene::contact_model`] (0 without contact; +∞ if a free vertex is on or inside an
-    /// obstacle).
+    /// [`Scene::contact_model`], and in 3D of the surface's triangles against the spheres (0
+    /// without contact; +∞ if a free vertex or a triangle is on or inside an obstacle).
     pub fn barrier_energy(&self, positions: &[SVector<f64, D>]) -> f64 {
         let Some(model) = self.contact_model() else {
             return 0.0;
@@ -614,6 +614,31 @@ impl<const D: usize> Scene<D> {
                     sum += model.stiffness
                         * masses[v]
                         * hooke_assembly::contact::barrier(d, model.distance);
+                }
+            }
+        }
+        if D == 3 {
+            // The surface's triangles against the spheres, κ_t = κ̂ × the mean mass of the
+            // triangle's vertices (as the solvers' obstacle terms).
+            let v3 = |p: &SVector<f64, D>| nalgebra::Vector3::new(p[0], p[1], p[2]);
+            let triangles = self.surface_triangles();
+            for (obstacle, _) in &model.obstacles {
+                let hooke_assembly::contact::Obstacle::SphereOutside { center, radius } = obstacle
+                else {
+                    continue;
+                };
+                for t in &triangles {
+                    if t.iter().all(|&v| self.is_pinned[v as usize]) {
+                        continue;
+                    }
+                    let mass = t.iter().map(|&v| masses[v as usize]).sum::<f64>() / 3.0;
+                    sum += hooke_assembly::surface_barrier::triangle_sphere_energy(
+                        &t.map(|v| v3(&positions[v as usize])),
+                        &v3(center),
+                        *radius,
+                        model.distance,
+                        model.stiffness * mass,
+                    );
                 }
             }
         }

@@ -612,14 +612,7 @@ impl<const D: usize> BackwardEulerStep<D> {
                 problem: format!("rest position {p} is not finite"),
             });
         }
-        for (k, t) in model.triangles.iter().enumerate() {
-            if t.iter().any(|&v| v as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
-                return Err(ParamError::Input {
-                    field: "SelfContactModel::triangles",
-                    problem: format!("triangle {k} {t:?} needs three distinct vertices below {n}"),
-                });
-            }
-        }
+        check_triangles("SelfContactModel::triangles", &model.triangles, n)?;
         let mut free = vec![false; n];
         for &v in self.free.free_vertices() {
             free[v as usize] = true;
@@ -653,6 +646,35 @@ impl<const D: usize> BackwardEulerStep<D> {
             edge_edge_pairs,
             stiffness: terms.model.stiffness,
         })
+    }
+
+    /// Hold the triangles `triangles` (vertex indices) off every sphere obstacle of the contact
+    /// model as wholes: h² κ_t b(d) with d the distance from the closed triangle to the sphere and
+    /// κ_t the mean of its vertices' κ_v, and the line search capped by additive CCD of each
+    /// triangle against each sphere, so that no point of a triangle enters a sphere, not only its
+    /// vertices. Planes and boxes keep their vertex terms alone: their allowed side is convex, so a
+    /// triangle whose vertices are on it is on it. Call it after [`BackwardEulerStep::set_contact`]
+    /// (which removes it); it does nothing without a sphere or in 2D.
+    ///
+    /// # Errors
+    /// [`ParamError::Input`] for a triangle that names a vertex out of range or repeats one.
+    pub fn set_contact_surface(&mut self, triangles: Vec<[u32; 3]>) -> Result<(), ParamError> {
+        let n = self.x.len();
+        check_triangles("BackwardEulerStep::set_contact_surface", &triangles, n)?;
+        let mut free = vec![false; n];
+        for &v in self.free.free_vertices() {
+            free[v as usize] = true;
+        }
+        let (incident, start) = (&self.incident, &self.incident_start);
+        let joined = |i: u32, j: u32| {
+            incident[start[i as usize]..start[i as usize + 1]]
+                .iter()
+                .any(|&(_, other)| other == j)
+        };
+        if let Some(contact) = &mut self.contact {
+            contact.set_surface(triangles, free, joined);
+        }
+        Ok(())
     }
 
     /// The contact model, if any ([`BackwardEulerStep::set_contact`]).
@@ -744,4 +766,21 @@ impl<const D: usize> BackwardEulerStep<D> {
             self.x[v as usize] = SVector::from_column_slice(&xf[o..o + D]);
         }
     }
+}
+
+/// [`ParamError::Input`] naming `field` for a triangle with a vertex ≥ `n` or a repeated vertex.
+fn check_triangles(
+    field: &'static str,
+    triangles: &[[u32; 3]],
+    n: usize,
+) -> Result<(), ParamError> {
+    for (k, t) in triangles.iter().enumerate() {
+        if t.iter().any(|&v| v as usize >= n) || t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+            return Err(ParamError::Input {
+                field,
+                problem: format!("triangle {k} {t:?} needs three distinct vertices below {n}"),
+            });
+        }
+    }
+    Ok(())
 }

@@ -434,13 +434,16 @@ impl<const D: usize> BackwardEulerStep<D> {
                 &self.x,
                 self.h * self.h,
                 definiteness,
-                |v, block| {
-                    let c = if full {
-                        v
-                    } else {
-                        free.free_index(v).expect("a free vertex")
+                |i, j, block| {
+                    let column = |v: usize| {
+                        if full {
+                            v
+                        } else {
+                            free.free_index(v).expect("a free vertex")
+                        }
                     };
-                    pattern.add_diagonal_block(c, &block, values);
+                    let stored = pattern.add_block(column(i), column(j), &block, values);
+                    debug_assert!(stored, "the pattern lacks the contact block ({i}, {j})");
                 },
             );
         }
