@@ -259,6 +259,87 @@ pub fn triangle_sphere_energy(
     }
 }
 
+/// The change (J) of [`triangle_sphere_energy`] when the triangle's vertices move by `delta` (m),
+/// written without subtracting two rounded energies or distances: with q(w; y) = Σ wᵢ yᵢ, w₀ and w₁
+/// the barycentric weights of the closest points before and after the move, the squared distance
+/// changes by (Σ w₀ᵢδᵢ)·(2(q₀ − c) + Σ w₀ᵢδᵢ) − |D|² − 2(q₁ − c)·D with D = Σ (w₀ᵢ − w₁ᵢ)(yᵢ − y₀)
+/// (the first term moves the old closest point, the rest finds the new one), every term a product
+/// of small quantities; the barrier's change then follows [`crate::contact::barrier_change`]. So
+/// the change keeps its digits when the move is far below the rounding of coordinates relative to
+/// the centre, which a line search needs near convergence.
+pub fn triangle_sphere_energy_change(
+    t: &[Vec3; 3],
+    delta: &[Vec3; 3],
+    center: &Vec3,
+    radius: f64,
+    d_hat: f64,
+    kappa: f64,
+) -> f64 {
+    let end = [t[0] + delta[0], t[1] + delta[1], t[2] + delta[2]];
+    let w0 = closest_weights(center, t);
+    let w1 = closest_weights(center, &end);
+    let q0 = t[0] * w0[0] + t[1] * w0[1] + t[2] * w0[2];
+    let q1 = end[0] * w1[0] + end[1] * w1[1] + end[2] * w1[2];
+    let moved = delta[0] * w0[0] + delta[1] * w0[1] + delta[2] * w0[2];
+    let dw = [w0[0] - w1[0], w0[1] - w1[1], w0[2] - w1[2]];
+    let shift = (end[1] - end[0]) * dw[1] + (end[2] - end[0]) * dw[2];
+    let change_squared = moved.dot(&((q0 - center) * 2.0 + moved))
+        - shift.norm_squared()
+        - 2.0 * (q1 - center).dot(&shift);
+    let (rho0, rho1) = ((q0 - center).norm(), (q1 - center).norm());
+    let sum = rho0 + rho1;
+    let change = if sum > 0.0 { change_squared / sum } else { 0.0 };
+    let d0 = rho0 - radius;
+    if d0 >= d_hat && d0 + change >= d_hat {
+        return 0.0;
+    }
+    kappa * crate::contact::barrier_change(d0, change, d_hat)
+}
+
+/// The barycentric weights of the point of the closed triangle `t` closest to `p` (Ericson,
+/// "Real-Time Collision Detection", §5.1.5); a degenerate triangle gives a closest point of its
+/// edges.
+fn closest_weights(p: &Vec3, t: &[Vec3; 3]) -> [f64; 3] {
+    let (a, b, c) = (&t[0], &t[1], &t[2]);
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return [1.0, 0.0, 0.0];
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return [0.0, 1.0, 0.0];
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return [1.0 - v, v, 0.0];
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return [0.0, 0.0, 1.0];
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return [1.0 - w, 0.0, w];
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return [0.0, 1.0 - w, w];
+    }
+    let sum = va + vb + vc;
+    if sum.is_nan() || sum <= 0.0 {
+        // Degenerate: the closest of the three edges (handled above for each vertex region).
+        return [1.0, 0.0, 0.0];
+    }
+    let (v, w) = (vb / sum, vc / sum);
+    [1.0 - v - w, v, w]
+}
+
 /// κ b(ρ − offset) of a squared distance s = ρ² with gradient `gs` (and Hessian `hs` for the
 /// exact Hessian): `None` where ρ − offset ≥ d̂.
 #[inline]
@@ -547,6 +628,48 @@ mod tests {
             let fd = fd_gradient(energy, &padded, step);
             prop_assert!(relative(terms.gradient.as_slice(), &fd.as_slice()[3..]) < 1e-5);
         }
+    }
+
+    /// The change without cancellation agrees with the difference of energies for moves well
+    /// above the coordinates' rounding (there the difference is accurate to ~1e-10 of the change),
+    /// and with the first-order change g·δ for moves of 1e-13 m, where the difference of energies
+    /// is mostly rounding.
+    #[test]
+    fn triangle_sphere_change_keeps_its_digits() {
+        let center = Vec3::new(0.5, 0.0, 0.5);
+        let radius = 0.25;
+        let t = [
+            Vec3::new(0.47, 0.2512, 0.48),
+            Vec3::new(0.54, 0.2515, 0.49),
+            Vec3::new(0.50, 0.2513, 0.54),
+        ];
+        let dir = [
+            Vec3::new(0.3, -0.8, 0.1),
+            Vec3::new(-0.2, -0.5, 0.4),
+            Vec3::new(0.1, -0.9, -0.3),
+        ];
+        let d_hat = 1.4e-3;
+        let kappa = 1.7e4;
+        let energy = |p: &[Vec3; 3]| triangle_sphere_energy(p, &center, radius, d_hat, kappa);
+        assert!(energy(&t) > 0.0, "the triangle is within reach");
+        let large = dir.map(|d| d * 1e-5);
+        let moved = [t[0] + large[0], t[1] + large[1], t[2] + large[2]];
+        let direct = energy(&moved) - energy(&t);
+        let change = triangle_sphere_energy_change(&t, &large, &center, radius, d_hat, kappa);
+        assert!(
+            (change - direct).abs() <= 1e-8 * direct.abs(),
+            "{change} vs {direct}"
+        );
+        let tiny = dir.map(|d| d * 1e-13);
+        let terms = triangle_sphere_terms(&t, &center, radius, d_hat, kappa, None).unwrap();
+        let first_order: f64 = (0..3)
+            .map(|k| terms.gradient.fixed_rows::<3>(3 * k).dot(&tiny[k]))
+            .sum();
+        let change = triangle_sphere_energy_change(&t, &tiny, &center, radius, d_hat, kappa);
+        assert!(
+            (change - first_order).abs() <= 1e-6 * first_order.abs(),
+            "{change} vs {first_order}"
+        );
     }
 
     #[test]

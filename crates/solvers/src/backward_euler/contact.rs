@@ -8,7 +8,8 @@
 
 use hooke_assembly::contact::{self, LaggedFriction, Obstacle};
 use hooke_assembly::surface_barrier::{
-    triangle_sphere_distance, triangle_sphere_energy, triangle_sphere_terms,
+    triangle_sphere_distance, triangle_sphere_energy, triangle_sphere_energy_change,
+    triangle_sphere_terms,
 };
 use hooke_assembly::Definiteness;
 use hooke_collision::ccd::{point_triangle_ccd, CcdParams};
@@ -252,13 +253,18 @@ impl<const D: usize> StepContact<D> {
                     continue;
                 }
                 let start = tri.map(|v| v3(&x[v as usize]));
-                let end = tri.map(|v| v3(&(x[v as usize] + delta[v as usize])));
+                let moves = tri.map(|v| v3(&delta[v as usize]));
+                let end = [
+                    start[0] + moves[0],
+                    start[1] + moves[1],
+                    start[2] + moves[2],
+                ];
                 for (c, r) in &surface.spheres {
                     let near = |p: &[Vector3<f64>; 3]| triangle_sphere_distance(p, c, *r) < d_hat;
                     if near(&start) || near(&end) {
                         let kappa = surface.stiffness[k];
-                        changes += triangle_sphere_energy(&end, c, *r, d_hat, kappa)
-                            - triangle_sphere_energy(&start, c, *r, d_hat, kappa);
+                        changes +=
+                            triangle_sphere_energy_change(&start, &moves, c, *r, d_hat, kappa);
                     }
                 }
             }
@@ -356,7 +362,7 @@ impl<const D: usize> StepContact<D> {
                     *r,
                     d_hat,
                     surface.stiffness[k],
-                    Some(Definiteness::Clamped),
+                    Some(definiteness),
                 ) else {
                     return;
                 };

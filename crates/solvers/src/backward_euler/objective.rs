@@ -448,7 +448,8 @@ impl<const D: usize> BackwardEulerStep<D> {
             );
         }
         if let Some(terms) = &mut self.self_contact {
-            // The pairs' projected blocks; the pattern holds them (update_pattern).
+            // The pairs' blocks, exact or projected as the springs'; the pattern holds them
+            // (update_pattern).
             let full = self.counter.is_some();
             let free = &self.free;
             let column = |v: usize| {
@@ -458,7 +459,7 @@ impl<const D: usize> BackwardEulerStep<D> {
                     free.free_index(v).expect("a free vertex")
                 }
             };
-            terms.for_each_hessian_block(&self.x, self.h * self.h, |i, j, block| {
+            terms.for_each_hessian_block(&self.x, self.h * self.h, definiteness, |i, j, block| {
                 let stored = pattern.add_block(column(i), column(j), &block, values);
                 debug_assert!(
                     stored,

@@ -368,19 +368,19 @@ impl StepSelfContact {
     }
 
     /// Call `add(i, j, block)` with `scale` times every block (i, j) of the active pairs'
-    /// projected Hessians at `x` (i, j free vertices; both (i, j) and (j, i), in pair order).
+    /// Hessians at `x` with `definiteness` (exact, or projected to positive semidefinite; i, j free
+    /// vertices; both (i, j) and (j, i), in pair order).
     pub(crate) fn for_each_hessian_block<const D: usize>(
         &mut self,
         x: &[SVector<f64, D>],
         scale: f64,
+        definiteness: Definiteness,
         mut add: impl FnMut(usize, usize, SMatrix<f64, D, D>),
     ) {
         self.ensure(x);
         for pair in &self.pairs {
             let v = pair.vertices();
-            let Some(terms) =
-                self.pair_terms(pair, &Self::gather(x, v), Some(Definiteness::Clamped))
-            else {
+            let Some(terms) = self.pair_terms(pair, &Self::gather(x, v), Some(definiteness)) else {
                 continue;
             };
             for (a, &i) in v.iter().enumerate() {
