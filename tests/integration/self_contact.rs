@@ -218,3 +218,50 @@ fn a_cloth_on_a_small_sphere_keeps_every_triangle_outside() {
     }
     assert!(touched, "the cloth never came near the sphere");
 }
+
+/// The built-in contact scenes at a small size, every frame judged exactly: no two triangles of
+/// the cloth intersect, no point of a triangle is inside the sphere (cloth-drape-10 over its 60
+/// frames; cloth-twist-8 over its first 60, a turn and a half, where the cloth wrings itself).
+#[test]
+fn the_built_in_contact_scenes_never_intersect() {
+    for (setup, frames) in [
+        (hooke::sim::scenes::cloth_drape(10).unwrap(), 60),
+        (hooke::sim::scenes::cloth_twist(8).unwrap(), 60),
+    ] {
+        let name = setup.name.clone();
+        let triangles = setup.scene.mesh().triangles().to_vec();
+        let spheres: Vec<(Vector3<f64>, f64)> = setup
+            .scene
+            .contacts()
+            .iter()
+            .filter_map(|c| match c.shape {
+                hooke::sim::Shape::Sphere { center, radius } => Some((center, radius)),
+                _ => None,
+            })
+            .collect();
+        let mut sim = Simulation::new(setup.scene, setup.initial, setup.settings).unwrap();
+        let mut most_pairs = 0;
+        for frame in 1..=frames {
+            sim.step()
+                .unwrap_or_else(|e| panic!("{name} frame {frame}: {e}"));
+            let state = sim.self_contact_state().expect("self-contact is on");
+            most_pairs = most_pairs.max(state.point_triangle_pairs + state.edge_edge_pairs);
+            let positions = &sim.state().positions;
+            let pairs = intersecting_triangle_pairs(positions, &triangles).unwrap();
+            assert!(
+                pairs.is_empty(),
+                "{name} frame {frame}: {pairs:?} intersect"
+            );
+            for (center, radius) in &spheres {
+                let inside = hooke::mesh::intersection::triangles_inside_sphere(
+                    positions, &triangles, center, *radius,
+                )
+                .unwrap();
+                assert!(
+                    inside.is_empty(),
+                    "{name} frame {frame}: {inside:?} in the sphere"
+                );
+            }
+        }
+    }
+}
