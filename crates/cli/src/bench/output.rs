@@ -202,8 +202,9 @@ pub fn format_sweep_table(rows: &[SweepRow]) -> String {
 }
 
 /// The hard-case matrix (cases down, integrators across; `-` where a pair was not run), then one
-/// line per run with its [`RunStats`](crate::bench::RunStats), then one line per run that did not
-/// finish, with its error.
+/// line per run with its [`RunStats`](crate::bench::RunStats), then (if any case has self-contact
+/// or a sphere) one line per run of such a case with the exact surface checks, then one line per
+/// run that did not finish, with its error.
 pub fn format_hard_cases(results: &[HardResult]) -> String {
     let mut integrators: Vec<&str> = Vec::new();
     let mut cases: Vec<&str> = Vec::new();
@@ -243,6 +244,10 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
                             };
                             format!("ok{mark} dE {energy_drift:+.1e} s {max_stretch:.2}{pieces}")
                         }
+                        HardOutcome::Unsupported { error } => {
+                            details += &format!("{c}, {i}: unsupported: {error}\n");
+                            "unsupported".to_string()
+                        }
                         HardOutcome::Refused { error } => {
                             details += &format!("{c}, {i}: refused: {error}\n");
                             "refused".to_string()
@@ -265,6 +270,7 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
         s += "\n";
     }
     s += &format_run_stats(results);
+    s += &format_surface_checks(results);
     if !details.is_empty() {
         s += "\n";
         s += &details;
@@ -277,7 +283,7 @@ pub fn format_hard_cases(results: &[HardResult]) -> String {
 /// penetration into an obstacle (m, ≤ 0; 0 when nothing went inside). `-` where no frame finished.
 fn format_run_stats(results: &[HardResult]) -> String {
     let mut s = format!(
-        "\n{:<20} | {:<18} | {:<8} | {:>9} | {:>13} | {:>13} | {:>14}\n",
+        "\n{:<20} | {:<18} | {:<11} | {:>9} | {:>13} | {:>13} | {:>14}\n",
         "case",
         "integrator",
         "outcome",
@@ -287,22 +293,75 @@ fn format_run_stats(results: &[HardResult]) -> String {
         "penetration m"
     );
     for r in results {
-        let outcome = match r.outcome {
-            HardOutcome::Ok { .. } => "ok",
-            HardOutcome::Refused { .. } => "refused",
-            HardOutcome::Failed { .. } => "failed",
-        };
         let st = &r.stats;
         let (step, total) = match st.max_energy_step {
             Some(step) => (format!("{step:+.3e}"), format!("{:+.3e}", st.energy_change)),
             None => ("-".into(), "-".into()),
         };
         s += &format!(
-            "{:<20} | {:<18} | {outcome:<8} | {:>9} | {step:>13} | {total:>13} | {:>14.3e}\n",
+            "{:<20} | {:<18} | {:<11} | {:>9} | {step:>13} | {total:>13} | {:>14.3e}\n",
             r.case,
             r.integrator,
+            r.outcome.label(),
             format!("{}/{}", st.converged, st.frames),
             st.deepest_penetration
+        );
+    }
+    s
+}
+
+/// One line per run of a case with self-contact or a sphere obstacle: the frames in which the
+/// surface intersected itself and in which a triangle had a point inside a sphere (each of the
+/// frames finished; both must be 0), the smallest self-contact distance over the run and the
+/// scene's d̂ (m; `inf` when no pair was a candidate, [`RunStats`](crate::bench::RunStats)), and
+/// the most point–triangle and edge–edge pairs within d̂ in one frame. `-` where the check does not
+/// apply or no frame finished. Empty if no run has such a case.
+fn format_surface_checks(results: &[HardResult]) -> String {
+    let checked: Vec<&HardResult> = results
+        .iter()
+        .filter(|r| {
+            r.stats.self_intersecting_frames.is_some() || r.stats.frames_inside_sphere.is_some()
+        })
+        .collect();
+    if checked.is_empty() {
+        return String::new();
+    }
+    let mut s = format!(
+        "\n{:<20} | {:<18} | {:<11} | {:>8} | {:>11} | {:>11} | {:>12} | {:>10} | {:>8} | {:>8}\n",
+        "case",
+        "integrator",
+        "outcome",
+        "frames",
+        "self-isect",
+        "in sphere",
+        "min dist m",
+        "dhat m",
+        "max pt",
+        "max ee"
+    );
+    for r in checked {
+        let st = &r.stats;
+        let finished = st.frames > 0;
+        let count = |v: Option<usize>| match v {
+            Some(v) if finished => v.to_string(),
+            _ => "-".into(),
+        };
+        let length = |v: Option<f64>| match v {
+            Some(v) => format!("{v:.3e}"),
+            None => "-".into(),
+        };
+        s += &format!(
+            "{:<20} | {:<18} | {:<11} | {:>8} | {:>11} | {:>11} | {:>12} | {:>10} | {:>8} | {:>8}\n",
+            r.case,
+            r.integrator,
+            r.outcome.label(),
+            st.frames,
+            count(st.self_intersecting_frames),
+            count(st.frames_inside_sphere),
+            length(st.smallest_self_distance),
+            length(st.self_contact_reach),
+            count(st.most_point_triangle_pairs),
+            count(st.most_edge_edge_pairs)
         );
     }
     s
