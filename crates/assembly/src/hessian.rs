@@ -175,6 +175,55 @@ impl<const D: usize> HessianPattern<D> {
         true
     }
 
+    /// Add `scale` times an element's Hessian `hessian` over K vertices (a (K·D) × (K·D) matrix in
+    /// column-major order, K = `columns.len()`) into the blocks of the block columns `columns`
+    /// (`None` for a vertex that is not a column, whose rows and columns are skipped), block
+    /// column by block column: the same additions, in the same order, as
+    /// [`HessianPattern::add_block`] called for every pair (a, b) with b outer. `false`, adding
+    /// nothing more from that point, if the pattern lacks one of the blocks.
+    ///
+    /// # Panics
+    /// If a column is out of range, `hessian` is not (K·D)² long, or `values` does not have one
+    /// entry per stored entry.
+    #[track_caller]
+    pub fn add_element(
+        &self,
+        columns: &[Option<usize>],
+        hessian: &[f64],
+        scale: f64,
+        values: &mut [f64],
+    ) -> bool {
+        let size = D * columns.len();
+        assert_eq!(hessian.len(), size * size, "add_element: a (K·D)² Hessian");
+        assert_eq!(
+            values.len(),
+            self.nnz(),
+            "add_element: one value per stored entry"
+        );
+        let graph = &self.graph;
+        for (b, column) in columns.iter().enumerate() {
+            let Some(column) = *column else { continue };
+            let rows = graph.block_rows(column);
+            let blocks = graph.column_blocks(column);
+            let column_len = D * blocks.len();
+            for (a, row) in columns.iter().enumerate() {
+                let Some(row) = *row else { continue };
+                let Ok(slot) = rows.binary_search(&(row as u32)) else {
+                    return false;
+                };
+                let at = D * D * blocks.start + D * slot;
+                for c in 0..D {
+                    let source = &hessian[(D * b + c) * size + D * a..][..D];
+                    let target = &mut values[at + c * column_len..][..D];
+                    for (t, h) in target.iter_mut().zip(source) {
+                        *t += scale * h;
+                    }
+                }
+            }
+        }
+        true
+    }
+
     /// Zero the blocks no spring writes ([`HessianPattern::with_links`]).
     fn zero_link_blocks(&self, values: &mut [f64]) {
         for &(column, slot) in &self.link_blocks {

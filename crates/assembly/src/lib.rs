@@ -6,7 +6,9 @@
 //! fixed pattern refilled in place ([`hessian`]), the fixed-vertex reduction ([`FreeDofs`]), the
 //! projective dynamics matrices with their Kronecker structure kept ([`pd`]), pinned vertices held
 //! by counter-forces on all DOFs instead ([`CounterForce`]), contact with static obstacles for the
-//! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`contact`]), and
+//! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`contact`]), the
+//! barrier on a triangle surface's pairs and against spheres ([`surface_barrier`]) summed over a
+//! surface for self-contact ([`self_contact`]), and
 //! central finite differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
 //! `interop` converts the assembled matrices to those crates' CSC types.
 //!
@@ -26,6 +28,7 @@ pub mod hessian;
 pub mod interop;
 pub mod pd;
 mod schedule;
+pub mod self_contact;
 pub mod spring;
 pub mod surface_barrier;
 

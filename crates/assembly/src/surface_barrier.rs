@@ -2,11 +2,11 @@
 //! (point–triangle and edge–edge, Li et al. 2020, "Incremental Potential Contact", §4) and a
 //! triangle against a sphere, with their gradients and Hessians over the vertices involved.
 //!
-//! This module owns the energies. The distances, their derivatives and the edge–edge mollifier
-//! come from `hooke_collision::distance`; which pairs are near (the broad phase), the continuous
-//! collision detection that caps a line search, and the sum over a surface belong to the solvers
-//! (`hooke_solvers::backward_euler`). Vertex-level barriers against static obstacles are in
-//! [`crate::contact`], whose barrier b this module shares.
+//! This module owns the energies of single terms. The distances, their derivatives and the
+//! edge–edge mollifier come from `hooke_collision::distance`; the sum over a surface's pairs is
+//! [`crate::self_contact`]; the continuous collision detection that caps a line search belongs to
+//! the solvers (`hooke_solvers::backward_euler`). Vertex-level barriers against static obstacles
+//! are in [`crate::contact`], whose barrier b this module shares.
 //!
 //! Every term is κ b(d) with b(d) = −(d − d̂)² ln(d/d̂) (m²) for 0 < d < d̂, zero beyond d̂, +∞ at
 //! and below 0, κ in N/m, so that a term is in J, and d the unsigned distance (m) between the two
@@ -29,11 +29,12 @@
 //! No function here allocates or panics; NaN in an input comes out as NaN.
 
 use hooke_collision::distance::{
-    edge_edge_case, edge_edge_cross_squared, edge_edge_cross_squared_gradient,
+    edge_edge_case_and_distance_squared, edge_edge_cross_squared, edge_edge_cross_squared_gradient,
     edge_edge_cross_squared_hessian, edge_edge_distance_squared_gradient,
     edge_edge_distance_squared_hessian, mollifier, mollifier_derivative,
-    mollifier_second_derivative, point_triangle_case, point_triangle_distance_squared,
-    point_triangle_distance_squared_gradient, point_triangle_distance_squared_hessian,
+    mollifier_second_derivative, point_triangle_case, point_triangle_case_and_distance_squared,
+    point_triangle_distance_squared, point_triangle_distance_squared_gradient,
+    point_triangle_distance_squared_hessian,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -104,7 +105,11 @@ pub fn point_triangle_terms(
     kappa: f64,
     hessian: Option<Definiteness>,
 ) -> Option<FeatureTerms<12>> {
-    let case = point_triangle_case(&x[0], &x[1], &x[2], &x[3]);
+    let (case, s) = point_triangle_case_and_distance_squared(&x[0], &x[1], &x[2], &x[3]);
+    // Most candidates of a broad phase are out of reach: no derivative for them.
+    if s.sqrt() >= d_hat {
+        return None;
+    }
     match hessian {
         Some(Definiteness::Exact) => {
             let (s, gs, hs) =
@@ -137,7 +142,11 @@ pub fn edge_edge_terms(
     eps_x: f64,
     hessian: Option<Definiteness>,
 ) -> Option<FeatureTerms<12>> {
-    let case = edge_edge_case(&x[0], &x[1], &x[2], &x[3]);
+    let (case, s) = edge_edge_case_and_distance_squared(&x[0], &x[1], &x[2], &x[3]);
+    // Most candidates of a broad phase are out of reach: no derivative for them.
+    if s.sqrt() >= d_hat {
+        return None;
+    }
     let exact = hessian == Some(Definiteness::Exact);
     let (s, gs, hs) = if exact {
         let (s, g, h) = edge_edge_distance_squared_hessian(&x[0], &x[1], &x[2], &x[3], case);
@@ -423,6 +432,7 @@ fn symmetrize<const N: usize>(h: SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hooke_collision::distance::edge_edge_case;
     use proptest::prelude::*;
 
     /// Central differences of `f` over the 12 coordinates at `x` with step `step`.

@@ -173,6 +173,18 @@ pub fn point_triangle_case(p: &Vec3, t0: &Vec3, t1: &Vec3, t2: &Vec3) -> PointTr
     point_triangle_closest(p, t0, t1, t2).0
 }
 
+/// [`point_triangle_case`] and [`point_triangle_distance_squared`] at once (m²), for one pass
+/// where both are wanted.
+#[inline]
+pub fn point_triangle_case_and_distance_squared(
+    p: &Vec3,
+    t0: &Vec3,
+    t1: &Vec3,
+    t2: &Vec3,
+) -> (PointTriangleCase, f64) {
+    point_triangle_closest(p, t0, t1, t2)
+}
+
 /// The squared distance (m²) between the point p and the closed triangle (t0, t1, t2), vertices,
 /// edges and interior included. Degenerate triangles are fine (the distance to their segment or
 /// point). Equals the primitive distance of [`point_triangle_case`]'s case.
@@ -274,8 +286,21 @@ pub fn edge_edge_case(ea0: &Vec3, ea1: &Vec3, eb0: &Vec3, eb1: &Vec3) -> EdgeEdg
 /// zero-length edges are fine. Equals the primitive distance of [`edge_edge_case`]'s case.
 #[inline]
 pub fn edge_edge_distance_squared(ea0: &Vec3, ea1: &Vec3, eb0: &Vec3, eb1: &Vec3) -> f64 {
+    edge_edge_case_and_distance_squared(ea0, ea1, eb0, eb1).1
+}
+
+/// [`edge_edge_case`] and [`edge_edge_distance_squared`] at once (m²), for one pass where both
+/// are wanted.
+#[inline]
+pub fn edge_edge_case_and_distance_squared(
+    ea0: &Vec3,
+    ea1: &Vec3,
+    eb0: &Vec3,
+    eb1: &Vec3,
+) -> (EdgeEdgeCase, f64) {
     use EdgeEdgeCase::*;
-    match edge_edge_case(ea0, ea1, eb0, eb1) {
+    let case = edge_edge_case(ea0, ea1, eb0, eb1);
+    let s = match case {
         Ea0Eb0 => point_point_distance_squared(ea0, eb0),
         Ea0Eb1 => point_point_distance_squared(ea0, eb1),
         Ea1Eb0 => point_point_distance_squared(ea1, eb0),
@@ -285,7 +310,8 @@ pub fn edge_edge_distance_squared(ea0: &Vec3, ea1: &Vec3, eb0: &Vec3, eb1: &Vec3
         EaEb0 => point_line_distance_squared(eb0, ea0, ea1),
         EaEb1 => point_line_distance_squared(eb1, ea0, ea1),
         LineLine => line_line_distance_squared(ea0, ea1, eb0, eb1),
-    }
+    };
+    (case, s)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ use contact::StepContact;
 pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
 use self_contact::StepSelfContact;
-pub use self_contact::{SelfContactModel, SelfContactState};
+pub use self_contact::{collision_free_step, SelfContactModel, SelfContactState};
 
 /// The default θ of [`BackwardEulerStep::set_definite_share`]: half of every vertex's mass may
 /// hold its compressed springs, half is kept as the margin of definiteness.
@@ -344,7 +344,7 @@ impl<const D: usize> BackwardEulerStep<D> {
     pub fn set_parallel(&mut self, parallel: bool) {
         self.parallel = parallel;
         if let Some(terms) = &mut self.self_contact {
-            terms.parallel = parallel;
+            terms.barrier.set_parallel(parallel);
         }
     }
 
@@ -618,7 +618,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             free[v as usize] = true;
         }
         let mut terms = StepSelfContact::new(model, free);
-        terms.parallel = self.parallel;
+        terms.barrier.set_parallel(self.parallel);
         self.self_contact = Some(Box::new(terms));
         if self.contact_scratch.len() != n {
             self.contact_scratch = vec![SVector::zeros(); n];
@@ -628,7 +628,7 @@ impl<const D: usize> BackwardEulerStep<D> {
 
     /// The self-contact model, if any ([`BackwardEulerStep::set_self_contact`]).
     pub fn self_contact(&self) -> Option<&SelfContactModel> {
-        self.self_contact.as_ref().map(|c| &c.model)
+        self.self_contact.as_ref().map(|c| c.barrier.model())
     }
 
     /// What self-contact does at the full positions `positions` (one per vertex, m): `None`
@@ -638,13 +638,13 @@ impl<const D: usize> BackwardEulerStep<D> {
         positions: &[SVector<f64, D>],
     ) -> Option<SelfContactState> {
         let terms = self.self_contact.as_mut()?;
-        let (point_triangle_pairs, edge_edge_pairs) = terms.active_counts(positions);
+        let (point_triangle_pairs, edge_edge_pairs) = terms.barrier.active_counts(positions);
         Some(SelfContactState {
-            energy: terms.energy(positions),
-            smallest_distance: terms.smallest_distance(positions),
+            energy: terms.barrier.energy(positions),
+            smallest_distance: terms.barrier.smallest_distance(positions),
             point_triangle_pairs,
             edge_edge_pairs,
-            stiffness: terms.model.stiffness,
+            stiffness: terms.barrier.model().stiffness,
         })
     }
 

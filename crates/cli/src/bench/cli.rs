@@ -105,6 +105,15 @@ pub struct BenchArgs {
     /// README.json into this directory, and run no solver.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "hard_cases", "time_error", "sph"])]
     pub export_system: Option<PathBuf>,
+    /// Self-contact instead: time the contact work of one Newton iteration (broad phase and
+    /// pairs within d̂, barrier value, gradient, PSD-projected Hessian, CCD step) on the surface
+    /// of A.obj moving to B.obj (same triangles), as a table (--json FILE; --repeats timed runs
+    /// per stage).
+    #[arg(long, num_args = 2, value_names = ["A.obj", "B.obj"], conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv", "sph", "export_system", "plot"])]
+    pub contact: Option<Vec<PathBuf>>,
+    /// With --contact: the barrier's reach d̂ (m).
+    #[arg(long, default_value_t = 1e-3, requires = "contact")]
+    pub dhat: f64,
     /// No progress lines on stderr.
     #[arg(long, short)]
     pub quiet: bool,
@@ -127,6 +136,7 @@ Examples:
   hooke bench --sweep N=10,20,40,80,160 --solver pd:10 --solver newton-tol:1e-8
   hooke bench --hard-cases
   hooke bench --sph 1e4,1e5,dam-break-2d --json out/sph.json --plot out/sph.png
+  hooke bench --contact A.obj B.obj --dhat 1e-3
   hooke bench cloth-40 --time-error --json out/cloth-40-time-error.json";
 
 /// Run `hooke bench` with `args`: print the table on stdout and write the files asked for.
@@ -138,6 +148,18 @@ pub fn run_command(args: &BenchArgs) -> Result<(), BenchError> {
         // The command runs the fluid's benchmark itself, with its typed error; here it comes as text.
         return crate::sph::bench::run(&crate::sph::bench::SphBenchOptions::from_args(args))
             .map_err(|e| BenchError::Scene(e.to_string()));
+    }
+    if let Some(files) = &args.contact {
+        crate::output::remove_leftovers_of(
+            &args.json.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+        )
+        .map_err(leftover_error)?;
+        let timings = crate::bench::contact_kernels(&files[0], &files[1], args.dhat, args.repeats)?;
+        print!("{}", crate::bench::format_contact(&timings));
+        if let Some(path) = &args.json {
+            crate::bench::output::write_serialized(path, &timings)?;
+        }
+        return Ok(());
     }
     // What a killed earlier run left of the files this one writes (the shared cache aside: another
     // run may be writing there).

@@ -14,7 +14,8 @@
 //!   residual);
 //! - [`write_json`], [`write_csv`], [`format_table`], [`plot_pareto`] report [`Record`]s;
 //! - [`sweep`] times one step on cloth-N for several N; [`hard_cases`] runs every integrator on the
-//!   hard cases of docs/scenes.md §6; [`time_error`] runs every integrator for 1 s and reports its
+//!   hard cases of docs/scenes.md §6; [`contact_kernels`] times the self-contact work of one
+//!   Newton iteration on two OBJ files; [`time_error`] runs every integrator for 1 s and reports its
 //!   time-discretisation error against small-step references.
 //!
 //! ```no_run
@@ -32,6 +33,7 @@
 //! ```
 
 pub(crate) mod cli;
+mod contact;
 mod export;
 mod hard;
 mod measure;
@@ -46,6 +48,7 @@ mod time_error;
 use std::path::PathBuf;
 
 pub use cli::{run_command, BenchArgs};
+pub use contact::{contact_kernels, format_contact, ContactTimings};
 pub use export::{export_system, StepSystems, EXPORT_FILES};
 pub use hard::{
     deepest_penetration, energy_scale, hard_case, hard_case_settings, hard_cases, hard_scene,

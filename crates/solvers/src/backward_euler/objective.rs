@@ -33,7 +33,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             None => 0.0,
         };
         if let Some(terms) = &mut self.self_contact {
-            contact += terms.energy(&self.x);
+            contact += terms.barrier.energy(&self.x);
         }
         inertia
             + self.h
@@ -97,7 +97,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             None => 0.0,
         };
         if let Some(terms) = &mut self.self_contact {
-            contact += terms.energy_change(&self.x, &self.trial_positions);
+            contact += terms.barrier.energy_change(&self.x, &self.trial_positions);
         }
         inertia + self.h * self.h * (energy + contact) + dashpot
     }
@@ -122,7 +122,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             contact.add_gradient(self.free.free_vertices(), &self.x, -1.0, &mut self.force);
         }
         if let Some(terms) = &mut self.self_contact {
-            terms.add_gradient(&self.x, -1.0, &mut self.force);
+            terms.barrier.add_gradient(&self.x, -1.0, &mut self.force);
         }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
@@ -180,7 +180,9 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 );
             }
             if let Some(terms) = &mut self.self_contact {
-                terms.add_gradient(&self.x, 1.0, &mut self.contact_scratch);
+                terms
+                    .barrier
+                    .add_gradient(&self.x, 1.0, &mut self.contact_scratch);
             }
             for (f, g) in self.force.iter_mut().zip(&self.contact_scratch) {
                 *f += g.abs();
@@ -256,7 +258,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         let mut wanted = std::mem::take(&mut self.wanted_links);
         wanted.clear();
         if let Some(terms) = &mut self.self_contact {
-            terms.links(&self.x, &mut wanted);
+            terms.barrier.links(&self.x, &mut wanted);
         }
         let replace = std::mem::take(&mut self.links_replaced_next);
         let changed = self.update_links(&mut wanted, replace);
@@ -452,20 +454,16 @@ impl<const D: usize> BackwardEulerStep<D> {
             // (update_pattern).
             let full = self.counter.is_some();
             let free = &self.free;
-            let column = |v: usize| {
-                if full {
-                    v
-                } else {
-                    free.free_index(v).expect("a free vertex")
-                }
-            };
-            terms.for_each_hessian_block(&self.x, self.h * self.h, definiteness, |i, j, block| {
-                let stored = pattern.add_block(column(i), column(j), &block, values);
-                debug_assert!(
-                    stored,
-                    "the pattern lacks the self-contact block ({i}, {j})"
-                );
-            });
+            let column = |v: usize| if full { Some(v) } else { free.free_index(v) };
+            let complete = terms.barrier.add_hessian_into(
+                &self.x,
+                self.h * self.h,
+                definiteness,
+                pattern,
+                column,
+                values,
+            );
+            debug_assert!(complete, "the pattern lacks a self-contact block");
         }
         if let Some(counter) = &self.counter {
             // Pinned rows and columns: m_p I on the diagonal, zero elsewhere.
