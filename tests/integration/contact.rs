@@ -380,7 +380,7 @@ fn slide_on_a_slope(integrator: Integrator, mu: f64, frames: usize) -> f64 {
     let (mut lo, mut hi) = (1e-12 * model.distance, model.distance);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if -hooke::assembly::contact::barrier_derivative(mid, model.distance) > target {
+        if -hooke::assembly::barrier::barrier_derivative(mid, model.distance) > target {
             lo = mid;
         } else {
             hi = mid;

@@ -6,7 +6,7 @@
 //! fixed pattern refilled in place ([`hessian`]), the fixed-vertex reduction ([`FreeDofs`]), the
 //! projective dynamics matrices with their Kronecker structure kept ([`pd`]), pinned vertices held
 //! by counter-forces on all DOFs instead ([`CounterForce`]), contact with static obstacles for the
-//! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`contact`]), the
+//! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`barrier`]), the
 //! barrier on a triangle surface's pairs and against spheres ([`surface_barrier`]) summed over a
 //! surface for self-contact ([`self_contact`]), and
 //! central finite differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
@@ -15,7 +15,7 @@
 //! Units: metres, kilograms, seconds; stiffness in N/m, energy in J, force in N.
 #![deny(missing_docs)]
 
-pub mod contact;
+pub mod barrier;
 mod counter_force;
 mod definite;
 mod dofs;

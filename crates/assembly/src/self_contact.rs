@@ -108,6 +108,10 @@ pub struct SelfContactBarrier {
     /// Scratch: positions and motions as 3-vectors.
     positions: Vec<Vector3<f64>>,
     motion: Vec<Vector3<f64>>,
+    /// The candidates (indices into `pairs`) within d̂ at the positions `active_at`, in pair order;
+    /// `active_at` empty: not known.
+    active: Vec<u32>,
+    active_at: Vec<Vector3<f64>>,
     /// Scratch: one batch of terms, and of gradients.
     batch: Vec<Option<FeatureTerms<12>>>,
     gradients: Vec<Option<SVector<f64, 12>>>,
@@ -157,6 +161,8 @@ impl SelfContactBarrier {
             edge_rest_squared,
             positions: vec![Vector3::zeros(); n],
             motion: vec![Vector3::zeros(); n],
+            active: Vec::new(),
+            active_at: Vec::new(),
             batch: Vec::new(),
             gradients: Vec::new(),
             parallel: true,
@@ -195,6 +201,7 @@ impl SelfContactBarrier {
         self.cover_low.clear();
         self.cover_high.clear();
         self.pairs.clear();
+        self.active_at.clear();
     }
 
     /// Whether every vertex of `x` lies within d̂/4 of its box.
@@ -263,6 +270,7 @@ impl SelfContactBarrier {
         let free = &self.free;
         let any_free = |v: &[u32; 4]| v.iter().any(|&i| free[i as usize]);
         self.pairs.clear();
+        self.active_at.clear();
         for &[p, t] in &self.found.point_triangle {
             let [a, b, c] = triangles[t as usize];
             let v = [p, a, b, c];
@@ -308,6 +316,38 @@ impl SelfContactBarrier {
         &self.pairs
     }
 
+    /// The candidates within d̂ at `x` (indices into the candidates, in pair order), computed once
+    /// per configuration: the energy, gradient, Hessian and links at the same `x` (bit for bit)
+    /// reuse them, which spares each a distance per candidate.
+    fn active<const D: usize>(&mut self, x: &[SVector<f64, D>]) {
+        self.pairs_near(x);
+        let same = self.active_at.len() == x.len()
+            && self
+                .active_at
+                .iter()
+                .zip(x)
+                .all(|(a, b)| (0..3).all(|k| a[k].to_bits() == b[k].to_bits()));
+        if same {
+            return;
+        }
+        let d_hat = self.model.distance;
+        let within = |(k, pair): (usize, &SurfacePair)| {
+            (pair.distance(&gather(x, pair.vertices())) < d_hat).then_some(k as u32)
+        };
+        // rayon's collect keeps the order of an indexed iterator: the serial list.
+        self.active = if self.parallel {
+            self.pairs
+                .par_iter()
+                .enumerate()
+                .filter_map(within)
+                .collect()
+        } else {
+            self.pairs.iter().enumerate().filter_map(within).collect()
+        };
+        self.active_at.clear();
+        self.active_at.extend(x.iter().map(v3));
+    }
+
     /// The barrier energy of `pair` at its vertices' positions `p` (J).
     #[inline]
     fn pair_energy(&self, pair: &SurfacePair, p: &[Vector3<f64>; 4]) -> f64 {
@@ -334,10 +374,10 @@ impl SelfContactBarrier {
 
     /// The barrier energy Σ κ b(d) at `x` (J; +∞ if two primitives touch), summed in pair order.
     pub fn energy<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> f64 {
-        self.pairs_near(x);
+        self.active(x);
         let this = &*self;
-        deterministic_sum(this.pairs.len(), this.parallel, |k| {
-            let pair = &this.pairs[k];
+        deterministic_sum(this.active.len(), this.parallel, |k| {
+            let pair = &this.pairs[this.active[k] as usize];
             this.pair_energy(pair, &gather(x, pair.vertices()))
         })
     }
@@ -367,7 +407,7 @@ impl SelfContactBarrier {
             }
             match pair {
                 SurfacePair::PointTriangle(_) => {
-                    this.model.stiffness * crate::contact::barrier_change(d0, d1 - d0, d_hat)
+                    this.model.stiffness * crate::barrier::barrier_change(d0, d1 - d0, d_hat)
                 }
                 SurfacePair::EdgeEdge(..) => {
                     this.pair_energy(pair, &end) - this.pair_energy(pair, &start)
@@ -376,31 +416,31 @@ impl SelfContactBarrier {
         })
     }
 
-    /// Call `each(pair, terms)` for every pair within d̂ at `x`, in pair order, with its terms
-    /// (Hessian with `hessian`'s definiteness if given): computed in parallel in batches.
+    /// Call `each(free, vertices, terms)` for every pair within d̂ at `x`, in pair order, with its
+    /// terms (Hessian with `hessian`'s definiteness if given): computed in parallel in batches.
     fn for_each_term<const D: usize>(
         &mut self,
         x: &[SVector<f64, D>],
         hessian: Option<Definiteness>,
         mut each: impl FnMut(&[bool], [u32; 4], &FeatureTerms<12>),
     ) {
-        self.pairs_near(x);
+        self.active(x);
         let mut batch = std::mem::take(&mut self.batch);
         let this = &*self;
-        for first in (0..this.pairs.len()).step_by(BATCH) {
-            let pairs = &this.pairs[first..(first + BATCH).min(this.pairs.len())];
-            batch.resize(pairs.len(), None);
-            let compute = |(slot, pair): (&mut Option<FeatureTerms<12>>, &SurfacePair)| {
+        for indices in this.active.chunks(BATCH) {
+            batch.resize(indices.len(), None);
+            let compute = |(slot, &k): (&mut Option<FeatureTerms<12>>, &u32)| {
+                let pair = &this.pairs[k as usize];
                 *slot = this.pair_terms(pair, &gather(x, pair.vertices()), hessian);
             };
             if this.parallel {
-                batch.par_iter_mut().zip(pairs).for_each(compute);
+                batch.par_iter_mut().zip(indices).for_each(compute);
             } else {
-                batch.iter_mut().zip(pairs).for_each(compute);
+                batch.iter_mut().zip(indices).for_each(compute);
             }
-            for (terms, pair) in batch.iter().zip(pairs) {
+            for (terms, &k) in batch.iter().zip(indices) {
                 if let Some(terms) = terms {
-                    each(&this.free, pair.vertices(), terms);
+                    each(&this.free, this.pairs[k as usize].vertices(), terms);
                 }
             }
         }
@@ -414,29 +454,29 @@ impl SelfContactBarrier {
         scale: f64,
         out: &mut [SVector<f64, D>],
     ) {
-        self.pairs_near(x);
+        self.active(x);
         // Only the 12 gradient entries per pair go through the buffer.
         let mut batch = std::mem::take(&mut self.gradients);
         let this = &*self;
-        for first in (0..this.pairs.len()).step_by(BATCH) {
-            let pairs = &this.pairs[first..(first + BATCH).min(this.pairs.len())];
-            batch.resize(pairs.len(), None);
-            let compute = |(slot, pair): (&mut Option<SVector<f64, 12>>, &SurfacePair)| {
+        for indices in this.active.chunks(BATCH) {
+            batch.resize(indices.len(), None);
+            let compute = |(slot, &k): (&mut Option<SVector<f64, 12>>, &u32)| {
+                let pair = &this.pairs[k as usize];
                 *slot = this
                     .pair_terms(pair, &gather(x, pair.vertices()), None)
                     .map(|t| t.gradient);
             };
             if this.parallel {
-                batch.par_iter_mut().zip(pairs).for_each(compute);
+                batch.par_iter_mut().zip(indices).for_each(compute);
             } else {
-                batch.iter_mut().zip(pairs).for_each(compute);
+                batch.iter_mut().zip(indices).for_each(compute);
             }
-            for (gradient, pair) in batch.iter().zip(pairs) {
+            for (gradient, &k) in batch.iter().zip(indices) {
                 let Some(gradient) = gradient else { continue };
-                for (k, &i) in pair.vertices().iter().enumerate() {
+                for (v, &i) in this.pairs[k as usize].vertices().iter().enumerate() {
                     if this.free[i as usize] {
                         let target = &mut out[i as usize];
-                        for (a, g) in gradient.fixed_rows::<3>(3 * k).iter().enumerate() {
+                        for (a, g) in gradient.fixed_rows::<3>(3 * v).iter().enumerate() {
                             target[a] += scale * g;
                         }
                     }
@@ -512,13 +552,9 @@ impl SelfContactBarrier {
     /// The vertex pairs (both free, lower index first) that the pairs within d̂ at `x` couple,
     /// appended to `links`: the off-diagonal blocks a Hessian's pattern must hold.
     pub fn links<const D: usize>(&mut self, x: &[SVector<f64, D>], links: &mut Vec<[u32; 2]>) {
-        self.pairs_near(x);
-        let d_hat = self.model.distance;
-        for pair in &self.pairs {
-            let v = pair.vertices();
-            if pair.distance(&gather(x, v)) >= d_hat {
-                continue;
-            }
+        self.active(x);
+        for &k in &self.active {
+            let v = self.pairs[k as usize].vertices();
             for a in 0..4 {
                 for b in a + 1..4 {
                     let (i, j) = (v[a], v[b]);
@@ -552,17 +588,12 @@ impl SelfContactBarrier {
 
     /// The numbers of point–triangle and edge–edge pairs within d̂ at `x`.
     pub fn active_counts<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> (usize, usize) {
-        self.pairs_near(x);
-        let d_hat = self.model.distance;
-        let mut counts = (0, 0);
-        for pair in &self.pairs {
-            if pair.distance(&gather(x, pair.vertices())) < d_hat {
-                match pair {
-                    SurfacePair::PointTriangle(_) => counts.0 += 1,
-                    SurfacePair::EdgeEdge(..) => counts.1 += 1,
-                }
-            }
-        }
-        counts
+        self.active(x);
+        let point_triangle = self
+            .active
+            .iter()
+            .filter(|&&k| matches!(self.pairs[k as usize], SurfacePair::PointTriangle(_)))
+            .count();
+        (point_triangle, self.active.len() - point_triangle)
     }
 }

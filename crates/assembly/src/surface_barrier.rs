@@ -6,7 +6,7 @@
 //! edge–edge mollifier come from `hooke_collision::distance`; the sum over a surface's pairs is
 //! [`crate::self_contact`]; the continuous collision detection that caps a line search belongs to
 //! the solvers (`hooke_solvers::backward_euler`). Vertex-level barriers against static obstacles
-//! are in [`crate::contact`], whose barrier b this module shares.
+//! are in [`crate::barrier`], whose barrier b this module shares.
 //!
 //! Every term is κ b(d) with b(d) = −(d − d̂)² ln(d/d̂) (m²) for 0 < d < d̂, zero beyond d̂, +∞ at
 //! and below 0, κ in N/m, so that a term is in J, and d the unsigned distance (m) between the two
@@ -38,7 +38,7 @@ use hooke_collision::distance::{
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::contact::{barrier, barrier_derivative, barrier_second_derivative};
+use crate::barrier::{barrier, barrier_derivative, barrier_second_derivative};
 use crate::Definiteness;
 
 /// A position (m).
@@ -273,7 +273,7 @@ pub fn triangle_sphere_energy(
 /// the barycentric weights of the closest points before and after the move, the squared distance
 /// changes by (Σ w₀ᵢδᵢ)·(2(q₀ − c) + Σ w₀ᵢδᵢ) − |D|² − 2(q₁ − c)·D with D = Σ (w₀ᵢ − w₁ᵢ)(yᵢ − y₀)
 /// (the first term moves the old closest point, the rest finds the new one), every term a product
-/// of small quantities; the barrier's change then follows [`crate::contact::barrier_change`]. So
+/// of small quantities; the barrier's change then follows [`crate::barrier::barrier_change`]. So
 /// the change keeps its digits when the move is far below the rounding of coordinates relative to
 /// the centre, which a line search needs near convergence.
 pub fn triangle_sphere_energy_change(
@@ -302,7 +302,7 @@ pub fn triangle_sphere_energy_change(
     if d0 >= d_hat && d0 + change >= d_hat {
         return 0.0;
     }
-    kappa * crate::contact::barrier_change(d0, change, d_hat)
+    kappa * crate::barrier::barrier_change(d0, change, d_hat)
 }
 
 /// The barycentric weights of the point of the closed triangle `t` closest to `p` (Ericson,

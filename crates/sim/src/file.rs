@@ -111,7 +111,7 @@ use hooke_solvers::{GlobalSolveKind, MemoryBudget};
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
-use crate::contact::{BarrierSettings, Contact, SelfContact, Shape};
+use crate::contact_model::{BarrierSettings, Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{

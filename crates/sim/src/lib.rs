@@ -25,7 +25,7 @@
 //! ```
 #![deny(missing_docs)]
 
-pub mod contact;
+pub mod contact_model;
 pub mod damping;
 mod error;
 pub mod file;
@@ -33,12 +33,13 @@ pub mod forces;
 mod implicit;
 pub mod integrator;
 mod linearized;
+mod projection;
 mod scene;
 pub mod scenes;
 mod simulation;
 pub mod stability;
 
-pub use contact::{BarrierSettings, Contact, SelfContact, Shape};
+pub use contact_model::{BarrierSettings, Contact, SelfContact, Shape};
 pub use damping::Damping;
 pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;

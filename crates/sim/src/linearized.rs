@@ -33,7 +33,7 @@
 //! - drag: v⁺ ← v⁺ e^(−h c_drag) after the solve, before x⁺ = x + h v⁺ (the order of the
 //!   symplectic integrator, so that β = 0 is symplectic Euler exactly);
 //! - contact: a projection of x⁺ and v⁺ after the step, for the whole mesh, done by
-//!   [`crate::Simulation`] (see [`crate::contact`]; pinned vertices untouched);
+//!   [`crate::Simulation`] (see [`crate::barrier`]; pinned vertices untouched);
 //! - pins: removed from the unknowns; a pinned vertex moves to its prescribed position at the end
 //!   of the step with velocity (x_pin(t + h) − x)/h, and that known velocity enters the free rows'
 //!   right-hand side through the coupling blocks (β h² H_s + h c_d r̂r̂ᵀ) v_pin of the springs to it.

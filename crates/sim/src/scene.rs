@@ -3,7 +3,7 @@
 use hooke_mesh::SpringMesh;
 use nalgebra::SVector;
 
-use crate::contact::{obstacles, BarrierSettings, Contact, SelfContact};
+use crate::contact_model::{obstacles, BarrierSettings, Contact, SelfContact};
 use crate::damping::Damping;
 use crate::error::{positive, SimError};
 use crate::forces::{ExternalForce, ExternalForces};
@@ -613,7 +613,7 @@ impl<const D: usize> Scene<D> {
                 if d < model.distance {
                     sum += model.stiffness
                         * masses[v]
-                        * hooke_assembly::contact::barrier(d, model.distance);
+                        * hooke_assembly::barrier::barrier(d, model.distance);
                 }
             }
         }
@@ -623,7 +623,7 @@ impl<const D: usize> Scene<D> {
             let v3 = |p: &SVector<f64, D>| nalgebra::Vector3::new(p[0], p[1], p[2]);
             let triangles = self.surface_triangles();
             for (obstacle, _) in &model.obstacles {
-                let hooke_assembly::contact::Obstacle::SphereOutside { center, radius } = obstacle
+                let hooke_assembly::barrier::Obstacle::SphereOutside { center, radius } = obstacle
                 else {
                     continue;
                 };
@@ -691,7 +691,7 @@ impl<const D: usize> Scene<D> {
 
     /// Take the contacts out (no allocation), so that an implicit solver given this scene does not
     /// project: [`crate::Simulation`] projects the whole mesh after the step instead (see
-    /// [`crate::contact`]). Put them back with [`Scene::restore_contacts`].
+    /// [`crate::barrier`]). Put them back with [`Scene::restore_contacts`].
     pub(crate) fn take_contacts(&mut self) -> Vec<Contact<D>> {
         std::mem::take(&mut self.contacts)
     }

@@ -3,7 +3,7 @@
 use hooke_mesh::generators::{self, SEED_2D_REST_LENGTH};
 use nalgebra::{SVector, Vector2, Vector3};
 
-use crate::contact::{Contact, SelfContact, Shape};
+use crate::contact_model::{Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{Integrator, Settings};

@@ -7,10 +7,10 @@ use hooke_solvers::SolveSummary;
 use nalgebra::SVector;
 use rayon::prelude::*;
 
-use crate::contact::StepProjection;
 use crate::implicit::{BackwardEuler, Minimizer};
 use crate::integrator::{Integrator, Settings};
 use crate::linearized::Linearized;
+use crate::projection::StepProjection;
 use crate::stability::{stability_bound, StabilityBound};
 use crate::{Energy, Scene, SimError, State};
 use hooke_solvers::backward_euler::SelfContactState;

@@ -12,13 +12,13 @@ use hooke_mesh::Spring;
 use crate::params::ParamError;
 use nalgebra::SVector;
 
-mod contact;
 mod objective;
+mod obstacles;
 mod patches;
 mod relaxation;
 mod self_contact;
-use contact::StepContact;
-pub use contact::{ContactModel, TIME_OF_IMPACT_SHARE};
+use obstacles::StepContact;
+pub use obstacles::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
 use self_contact::StepSelfContact;
 pub use self_contact::{collision_free_step, SelfContactModel, SelfContactState};

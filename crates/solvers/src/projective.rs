@@ -15,10 +15,10 @@ use hooke_assembly::{spring_energy, FreeDofs};
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 
-mod contact;
+mod collision_constraints;
 mod global;
 
-pub use contact::{PdContactModel, DEFAULT_CONTACT_WEIGHT};
+pub use collision_constraints::{PdContactModel, DEFAULT_CONTACT_WEIGHT};
 pub(crate) use global::GlobalSolve;
 use global::{DirectSolve, MultilevelSolve};
 pub use global::{GlobalSolveKind, PdMultilevelParams, MULTILEVEL_PD_FILL, MULTILEVEL_PD_UNKNOWNS};
@@ -29,7 +29,7 @@ use crate::cholesky::{CholeskyError, CholeskyParams, FactorKind, SparseCholesky}
 use crate::operator::Preconditioner;
 use crate::params::{self, ParamError, HISTORY_RESERVE};
 use crate::report::StopReason;
-use contact::PdContact;
+use collision_constraints::PdContact;
 
 /// Why projective dynamics could not be set up or run.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -521,7 +521,7 @@ impl<const D: usize> ProjectiveDynamics<D> {
     /// start x_n, which must be outside every obstacle, not an initial guess: the solve starts
     /// from y where a vertex's way there is clear, and short of the first obstacle otherwise.
     /// Every iterate, and the result, is outside every obstacle (signed distance ≥ 0 as
-    /// [`Obstacle::distance`](hooke_assembly::contact::Obstacle::distance) computes it); see
+    /// [`Obstacle::distance`](hooke_collision::obstacle::Obstacle::distance) computes it); see
     /// [`PdContactModel`] and docs/contact.md for the contact solve and its friction. `springs`
     /// are the system's.
     ///

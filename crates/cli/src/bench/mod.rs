@@ -33,13 +33,13 @@
 //! ```
 
 pub(crate) mod cli;
-mod contact;
 mod export;
 mod hard;
 mod measure;
 mod output;
 mod plot;
 mod run;
+mod self_contact_kernels;
 mod spec;
 mod state;
 mod sweep;
@@ -48,7 +48,6 @@ mod time_error;
 use std::path::PathBuf;
 
 pub use cli::{run_command, BenchArgs};
-pub use contact::{contact_kernels, format_contact, ContactTimings};
 pub use export::{export_system, StepSystems, EXPORT_FILES};
 pub use hard::{
     deepest_penetration, energy_scale, hard_case, hard_case_settings, hard_cases, hard_scene,
@@ -63,6 +62,7 @@ pub use output::{
 pub(crate) use plot::{fitted_log_range, log_axis, log_tick_label};
 pub use plot::{plot_fronts, plot_pareto, plot_sweep};
 pub use run::{run_spec, Outcome, Record, TimingOptions};
+pub use self_contact_kernels::{contact_kernels, format_contact, ContactTimings};
 pub use spec::{Setting, SolverKind, SolverSpec};
 pub use state::{
     inertial_target, load_setup, BenchProblem, PrepareOptions, ReferenceInfo, StartState,

@@ -6,7 +6,7 @@
 //! This module owns the cap: the longest safe share of a step, by additive continuous collision
 //! detection (`hooke_collision::ccd`) on every pair whose swept boxes come within reach. The terms
 //! themselves (energy, gradient, Hessian blocks, the pattern's links) are the barrier's; obstacles
-//! are in the sibling module `contact`.
+//! are in the sibling module `obstacles`.
 
 pub use hooke_assembly::self_contact::SelfContactModel;
 use hooke_assembly::self_contact::{SelfContactBarrier, SurfacePair};

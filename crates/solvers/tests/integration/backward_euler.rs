@@ -426,7 +426,7 @@ fn projective_dynamics_gives_the_same_bits_on_one_thread_and_two() {
 /// clear and Φ is lower there (a body sliding along the ground), x_n otherwise.
 #[test]
 fn a_blocked_step_starts_where_the_velocity_takes_the_mesh() {
-    use hooke_assembly::contact::Obstacle;
+    use hooke_assembly::barrier::Obstacle;
     use hooke_solvers::backward_euler::ContactModel;
 
     let mesh = generators::cloth(4, 1e3).unwrap();

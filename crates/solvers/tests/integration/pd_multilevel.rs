@@ -335,7 +335,7 @@ fn invalid_multilevel_settings_are_refused() {
 /// where the direct path's contact solve lands.
 #[test]
 fn contact_on_the_multilevel_path_keeps_every_vertex_outside() {
-    use hooke_assembly::contact::Obstacle;
+    use hooke_assembly::barrier::Obstacle;
     use hooke_solvers::PdContactModel;
     let mesh = generators::cloth(24, 1e3).unwrap();
     let lift = V::new(0.0, 0.02, 0.0);

@@ -24,9 +24,13 @@
 //! vertex in contact moves only part of its way in each iteration, and sliding along an obstacle
 //! converges slowly within a fixed budget of iterations (it acts as extra friction; run PD to a
 //! tolerance, or use Chebyshev's acceleration, where sliding matters).
+//!
+//! This module owns the constraints and the clamping of PD's iterates; the obstacles' geometry is
+//! `hooke_collision::obstacle`'s, and backward Euler's barrier treatment of the same obstacles is
+//! `backward_euler::obstacles`.
 
-use hooke_assembly::contact::Obstacle;
 use hooke_assembly::pd::LaplacianPattern;
+use hooke_collision::obstacle::Obstacle;
 use hooke_mesh::Spring;
 use nalgebra::SVector;
 

@@ -1,11 +1,11 @@
-//! Property tests of the contact terms (hooke_assembly::contact): the barrier's and friction's
+//! Property tests of the contact terms (hooke_assembly::barrier): the barrier's and friction's
 //! derivatives against central differences, definiteness, continuity at d̂ and ε, the
 //! cancellation-free differences, and the time of impact's roots and feasibility guarantee, in 2D
 //! and 3D.
 
 #![allow(clippy::needless_range_loop)] // analytic and FD vectors are compared entry by entry
 
-use hooke_assembly::contact::*;
+use hooke_assembly::barrier::*;
 use hooke_assembly::{fd, Definiteness};
 use nalgebra::{DMatrix, SMatrix, SVector};
 use proptest::prelude::*;

@@ -3,10 +3,15 @@
 //! the surface); with a surface given, for every triangle and sphere h² κ_t b(d) with d the
 //! distance from the closed triangle to the sphere, so that no point of a triangle enters a sphere
 //! (a plane's allowed side is convex: a triangle whose vertices are on it is on it); and h² times
-//! the lagged friction potential of the contacts active at the step's start. Self-contact is in the
-//! sibling module `self_contact`.
+//! the lagged friction potential of the contacts active at the step's start.
+//!
+//! This module owns the sums of these terms over the mesh and the line-search cap against the
+//! obstacles (each free vertex's time of impact, and additive CCD of each triangle against each
+//! sphere). The single terms are `hooke_assembly`'s (`barrier`, `surface_barrier`), the geometry
+//! `hooke_collision`'s; self-contact is the sibling module `self_contact`; projective dynamics'
+//! treatment of the same obstacles is `projective::collision_constraints`.
 
-use hooke_assembly::contact::{self, LaggedFriction, Obstacle};
+use hooke_assembly::barrier::{self, LaggedFriction, Obstacle};
 use hooke_assembly::surface_barrier::{
     triangle_sphere_distance, triangle_sphere_energy, triangle_sphere_energy_change,
     triangle_sphere_terms,
@@ -165,7 +170,7 @@ impl<const D: usize> StepContact<D> {
                 if mu <= 0.0 {
                     continue;
                 }
-                if let Some(lagged) = contact::lagged_friction(
+                if let Some(lagged) = barrier::lagged_friction(
                     &obstacle,
                     x,
                     self.model.distance,
@@ -205,7 +210,7 @@ impl<const D: usize> StepContact<D> {
             for (obstacle, _) in &self.model.obstacles {
                 let d = obstacle.distance(&x[v]);
                 if d < d_hat {
-                    sum += self.stiffness[v] * contact::barrier(d, d_hat);
+                    sum += self.stiffness[v] * barrier::barrier(d, d_hat);
                 }
             }
         }
@@ -237,7 +242,7 @@ impl<const D: usize> StepContact<D> {
                 let d = obstacle.distance(&x[v]);
                 let change = obstacle.distance_change(&x[v], &delta[v]);
                 if d < d_hat || d + change < d_hat {
-                    sum += self.stiffness[v] * contact::barrier_change(d, change, d_hat);
+                    sum += self.stiffness[v] * barrier::barrier_change(d, change, d_hat);
                 }
             }
         }
@@ -287,7 +292,7 @@ impl<const D: usize> StepContact<D> {
         for &v in free {
             let v = v as usize;
             for (obstacle, _) in &self.model.obstacles {
-                if let Some(terms) = contact::vertex_barrier(
+                if let Some(terms) = barrier::vertex_barrier(
                     obstacle,
                     &x[v],
                     d_hat,
@@ -338,7 +343,7 @@ impl<const D: usize> StepContact<D> {
             let v = v as usize;
             for (obstacle, _) in &self.model.obstacles {
                 if let Some(terms) =
-                    contact::vertex_barrier(obstacle, &x[v], d_hat, self.stiffness[v], definiteness)
+                    barrier::vertex_barrier(obstacle, &x[v], d_hat, self.stiffness[v], definiteness)
                 {
                     add(v, v, terms.hessian * scale);
                 }
