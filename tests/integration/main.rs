@@ -3,6 +3,7 @@
 //! module is one area; run one with `cargo test --test integration -- MODULE::`.
 
 mod bench_cli;
+mod bench_contact;
 mod bench_hard_cases;
 mod bench_state;
 mod bench_sweep;

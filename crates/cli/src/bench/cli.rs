@@ -112,7 +112,12 @@ pub struct BenchArgs {
     #[arg(long, num_args = 2, value_names = ["A.obj", "B.obj"], conflicts_with_all = ["sweep", "hard_cases", "time_error", "frames", "compare", "csv", "sph", "export_system", "plot"])]
     pub contact: Option<Vec<PathBuf>>,
     /// With --contact: the barrier's reach d̂ (m).
-    #[arg(long, default_value_t = 1e-3, requires = "contact")]
+    #[arg(
+        long,
+        default_value_t = 1e-3,
+        requires = "contact",
+        allow_negative_numbers = true
+    )]
     pub dhat: f64,
     /// No progress lines on stderr.
     #[arg(long, short)]
