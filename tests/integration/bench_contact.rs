@@ -59,6 +59,17 @@ fn bench(a: &Path, b: &Path, json: &Path) -> std::process::Output {
         .unwrap()
 }
 
+/// The record of a successful run.
+fn bench_record(a: &Path, b: &Path, json: &Path) -> serde_json::Value {
+    let out = bench(a, b, json);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
+}
+
 /// Point–triangle and edge–edge pairs sharing no vertex within d̂, by brute force.
 fn brute_force_counts(x: &[Vector3<f64>], triangles: &[[u32; 3]]) -> (usize, usize) {
     let mut edges: Vec<[u32; 2]> = triangles
@@ -108,14 +119,7 @@ fn pair_counts_match_brute_force_and_the_step_stops_short_of_a_crossing() {
     // The upper sheet moved 1 mm down: through the lower one, 0.5 mm below it.
     write_obj(&crossing, &sheets(8, gap, 1e-3).0, &triangles);
 
-    let out = bench(&a, &b, &json);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let record = bench_record(&a, &b, &json);
     let count = |key: &str| record[key].as_u64().unwrap() as usize;
     let (point_triangle, edge_edge) = brute_force_counts(&x, &triangles);
     assert!(point_triangle > 0 && edge_edge > 0);
@@ -143,14 +147,7 @@ fn pair_counts_match_brute_force_and_the_step_stops_short_of_a_crossing() {
 
     // Through the other sheet: the step ends before the sheets meet (at 0.5 of the move), and
     // keeps at least a tenth of the gap (the CCD's kept share).
-    let out = bench(&a, &crossing, &json);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let record = bench_record(&a, &crossing, &json);
     let step = record["step"].as_f64().unwrap();
     assert!(step > 0.0 && step <= 0.9 * 0.5, "step {step}");
 }
