@@ -94,6 +94,6 @@ pub use params::{ParamError, MAX_THREADS};
 pub use projective::{
     FixedPointError, GlobalSolveKind, PdContactModel, PdError, PdMultilevelParams, PdParams,
     PdReport, ProjectiveDynamics, DEFAULT_CONTACT_WEIGHT, MULTILEVEL_PD_FILL,
-    MULTILEVEL_PD_UNKNOWNS,
+    MULTILEVEL_PD_UNKNOWNS, PD_MAX_ITERATIONS,
 };
 pub use report::{Report, SolveError, SolveSummary, StopReason};

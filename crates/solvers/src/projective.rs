@@ -49,18 +49,23 @@ pub enum PdError {
     Multilevel(#[from] AmgError),
 }
 
+/// The most iterations [`PdParams::max_iterations`] may ask for: a budget that ends (with no
+/// tolerance, PD runs every iteration of it), the same bound as Chebyshev PD's.
+pub const PD_MAX_ITERATIONS: usize = 1 << 24;
+
 impl PdParams {
-    /// Check the fields: `max_iterations` ≥ 1, `tolerance` finite and ≥ 0 (m/s),
+    /// Check the fields: `max_iterations` in 1..=[`PD_MAX_ITERATIONS`], `tolerance` finite and ≥ 0 (m/s),
     /// [`PdMultilevelParams::validate`] and [`CholeskyParams::validate`].
     ///
     /// # Errors
     /// [`ParamError`] naming the first field out of range.
     pub fn validate(&self) -> Result<(), ParamError> {
-        params::at_least(
+        params::count_in(
             "PdParams::max_iterations",
             self.max_iterations,
             1,
-            "at least 1",
+            PD_MAX_ITERATIONS,
+            "in 1 ..= 2^24",
         )?;
         params::non_negative("PdParams::tolerance", self.tolerance)?;
         params::real(

@@ -523,6 +523,26 @@ fn the_values_of_issue_19_are_refused_with_the_field_and_its_range() {
             ..
         })
     ));
+    // Without a tolerance PD runs its whole budget: one that cannot end is refused.
+    assert!(matches!(
+        PdParams {
+            max_iterations: usize::MAX,
+            tolerance: 0.0,
+            ..PdParams::default()
+        }
+        .validate(),
+        Err(ParamError::Count {
+            field: "PdParams::max_iterations",
+            value: usize::MAX,
+            ..
+        })
+    ));
+    assert!(PdParams {
+        max_iterations: hooke_solvers::PD_MAX_ITERATIONS,
+        ..PdParams::default()
+    }
+    .validate()
+    .is_ok());
     assert!(CholeskyParams::default().validate().is_ok());
     assert!(Relaxation::NONE.validate().is_ok() && Relaxation::BUCKLING.validate().is_ok());
     assert!(NewtonParams::default().validate().is_ok());
