@@ -265,6 +265,51 @@ fn a_vertex_that_starts_inside_an_obstacle_is_refused() {
 }
 
 #[test]
+fn set_motion_into_an_obstacle_is_refused_naming_the_vertex_and_the_obstacle() {
+    for integrator in [Integrator::Newton, Integrator::ProjectiveDynamics] {
+        let (scene, state) = drop(4, 0.1, Vector3::zeros(), vec![ground(0.0, 0.0)]);
+        let mut sim = Simulation::new(scene, state.clone(), settings(integrator)).unwrap();
+        let mut inside = state.positions.clone();
+        inside[5].y = -1e-3;
+        let err = sim.set_motion(&inside, &state.velocities).unwrap_err();
+        let message = err.to_string();
+        assert!(
+            matches!(err, SimError::InvalidParameter { .. })
+                && message.contains("vertex 5")
+                && message.contains("contact[0]"),
+            "{message}"
+        );
+        // Nothing was taken: the simulation still steps from where it was.
+        assert_eq!(sim.state().positions, state.positions);
+        sim.step().unwrap();
+    }
+}
+
+#[test]
+fn a_triangle_that_reaches_into_a_sphere_between_its_vertices_is_refused() {
+    // cloth-4 (spacing 1/3 m) at height 0 over a sphere of radius 5 cm centred 1 cm below the
+    // middle of a triangle: every vertex is outside the sphere, the triangle cuts through it.
+    let (scene, state) = drop(4, 0.0, Vector3::zeros(), vec![]);
+    let t = scene.surface_triangles()[4];
+    let middle = t
+        .iter()
+        .map(|&v| state.positions[v as usize])
+        .sum::<Vector3<f64>>()
+        / 3.0;
+    let ball = sphere(middle - Vector3::new(0.0, 0.01, 0.0), 0.05, 0.0);
+    assert!(state.positions.iter().all(|p| (p - middle).norm() > 0.1));
+    let (scene, state) = drop(4, 0.0, Vector3::zeros(), vec![ball]);
+    let err = Simulation::new(scene, state, settings(Integrator::Newton)).unwrap_err();
+    let message = err.to_string();
+    assert!(
+        matches!(err, SimError::InvalidParameter { .. })
+            && message.contains("surface triangle")
+            && message.contains("sphere"),
+        "{message}"
+    );
+}
+
+#[test]
 fn the_barrier_settings_are_checked() {
     let (scene, _) = drop(4, 0.1, Vector3::zeros(), vec![ground(0.0, 0.0)]);
     for bad in [

@@ -193,12 +193,12 @@ impl<const D: usize> Simulation<D> {
             _ => None,
         };
         let barrier = settings.integrator.uses_contact_barrier() && !scene.contacts().is_empty();
-        if settings.integrator.contact_in_solve() && !scene.contacts().is_empty() {
-            check_outside_obstacles(&scene, &state.positions)?;
-        }
-        if scene.self_contact().is_some() {
-            check_no_self_intersection(&scene, &state.positions)?;
-        }
+        check_start(
+            &scene,
+            settings.integrator,
+            &state.positions,
+            "initial positions",
+        )?;
         let projection = if !scene.contacts().is_empty()
             && !settings.integrator.is_explicit()
             && !settings.integrator.contact_in_solve()
@@ -377,6 +377,12 @@ impl<const D: usize> Simulation<D> {
                 });
             }
         }
+        check_start(
+            &self.scene,
+            self.settings.integrator,
+            positions,
+            "positions",
+        )?;
         self.state.positions.copy_from_slice(positions);
         self.state.velocities.copy_from_slice(velocities);
         Ok(())
@@ -708,19 +714,86 @@ fn smallest_distance<const D: usize>(
     smallest
 }
 
+/// Refuse `positions` (`what`: "initial positions" or "positions") that the integrator cannot
+/// start from: with contact inside the solve, a free vertex on or inside an obstacle, and with the
+/// barrier in 3D a triangle of the surface that reaches into a sphere (the barrier is infinite
+/// there); with self-contact, a surface that intersects itself.
+fn check_start<const D: usize>(
+    scene: &Scene<D>,
+    integrator: Integrator,
+    positions: &[SVector<f64, D>],
+    what: &str,
+) -> Result<(), SimError> {
+    if integrator.contact_in_solve() && !scene.contacts().is_empty() {
+        check_outside_obstacles(scene, positions, what)?;
+        if integrator.uses_contact_barrier() {
+            check_triangles_outside_spheres(scene, positions, what)?;
+        }
+    }
+    if scene.self_contact().is_some() {
+        check_no_self_intersection(scene, positions, what)?;
+    }
+    Ok(())
+}
+
+/// In 3D the barrier holds the surface's triangles off the spheres as wholes: a triangle (with a
+/// free vertex) that reaches on or into a sphere between its vertices is refused too.
+fn check_triangles_outside_spheres<const D: usize>(
+    scene: &Scene<D>,
+    positions: &[SVector<f64, D>],
+    what: &str,
+) -> Result<(), SimError> {
+    if D != 3 {
+        return Ok(());
+    }
+    let v3 = |p: &SVector<f64, D>| nalgebra::Vector3::new(p[0], p[1], p[2]);
+    let pinned = scene.is_pinned();
+    let triangles = scene.surface_triangles();
+    for (k, contact) in scene.contacts().iter().enumerate() {
+        let crate::Shape::Sphere { center, radius } = contact.shape else {
+            continue;
+        };
+        for (t, triangle) in triangles.iter().enumerate() {
+            if triangle.iter().all(|&v| pinned[v as usize]) {
+                continue;
+            }
+            let corners = triangle.map(|v| v3(&positions[v as usize]));
+            let d = hooke_assembly::surface_barrier::triangle_sphere_distance(
+                &corners,
+                &v3(&center),
+                radius,
+            );
+            if d <= 0.0 {
+                return Err(SimError::invalid(
+                    what,
+                    format!(
+                        "surface triangle {t} (vertices {triangle:?}) at distance {d:e} m from \
+                         contact[{k}], a sphere"
+                    ),
+                    "every triangle must start strictly outside every sphere (the barrier holds \
+                     triangles, not only vertices, off spheres): move the mesh or the sphere",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The contact barrier needs every free vertex strictly outside every obstacle at the start.
 fn check_outside_obstacles<const D: usize>(
     scene: &Scene<D>,
     positions: &[SVector<f64, D>],
+    what: &str,
 ) -> Result<(), SimError> {
     let (d, v, k) = smallest_distance(scene, positions);
     if d > 0.0 {
         return Ok(());
     }
     Err(SimError::invalid(
-        "initial positions",
+        what,
         format!("vertex {v} at signed distance {d:e} m from contact[{k}]"),
-        "every free vertex must start strictly outside every obstacle (the contact barrier is          infinite on and inside a surface): move the mesh or the obstacle",
+        "every free vertex must start strictly outside every obstacle (the contact barrier is \
+         infinite on and inside a surface): move the mesh or the obstacle",
     ))
 }
 
@@ -729,6 +802,7 @@ fn check_outside_obstacles<const D: usize>(
 fn check_no_self_intersection<const D: usize>(
     scene: &Scene<D>,
     positions: &[SVector<f64, D>],
+    what: &str,
 ) -> Result<(), SimError> {
     let points: Vec<nalgebra::Vector3<f64>> = positions
         .iter()
@@ -739,7 +813,7 @@ fn check_no_self_intersection<const D: usize>(
             .map_err(SimError::Mesh)?;
     match pairs.first() {
         Some([a, b]) => Err(SimError::invalid(
-            "initial positions",
+            what,
             format!("surface triangles {a} and {b} intersect"),
             "self-contact needs a surface free of intersections at the start",
         )),
