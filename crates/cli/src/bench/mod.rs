@@ -52,7 +52,8 @@ pub use export::{export_system, StepSystems, EXPORT_FILES};
 pub use hard::{
     deepest_penetration, energy_scale, hard_case, hard_case_settings, hard_cases, hard_scene,
     run_hard_case, HardCaseOptions, HardOutcome, HardResult, RunStats, BUNNY_DROP_FRAMES,
-    HARD_CASES, HARD_CASE_OVERRIDES, HARD_INTEGRATORS, HARD_OPT_IN_INTEGRATORS, HARD_SCENES,
+    HARD_CASES, HARD_CASE_OVERRIDES, HARD_INTEGRATORS, HARD_OPT_IN_INTEGRATORS, HARD_OPT_IN_SCENES,
+    HARD_SCENES,
 };
 pub use measure::{ErrorMeter, Measures};
 pub use output::{
