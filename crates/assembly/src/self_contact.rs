@@ -566,8 +566,9 @@ impl SelfContactBarrier {
         }
     }
 
-    /// The smallest distance (m) between the two primitives of a candidate pair at `x` (∞ if
-    /// none is within 1.5 d̂).
+    /// The smallest distance (m) between the two primitives of a candidate pair at `x`: exact
+    /// whenever a pair is within d̂ (every such pair is a candidate); above d̂ it says only that
+    /// none is, as candidates farther apart come and go with the search (∞: no candidate).
     pub fn smallest_distance<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> f64 {
         self.pairs_near(x);
         let this = &*self;

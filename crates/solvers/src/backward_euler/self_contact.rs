@@ -20,8 +20,9 @@ use rayon::prelude::*;
 pub struct SelfContactState {
     /// The barrier energy Σ κ b(d) over the pairs within d̂ (J), without the h² of Φ.
     pub energy: f64,
-    /// The smallest distance between the primitives of a pair (m), among the pairs within 1.5 d̂
-    /// (∞ if there is none).
+    /// The smallest distance between the primitives of a candidate pair of the broad phase (m):
+    /// exact whenever a pair is within d̂ (every such pair is a candidate); above d̂ it says only
+    /// that none is, as candidates farther apart come and go with the search (∞: no candidate).
     pub smallest_distance: f64,
     /// The point–triangle pairs within d̂.
     pub point_triangle_pairs: usize,
