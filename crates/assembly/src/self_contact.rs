@@ -195,8 +195,8 @@ impl SelfContactBarrier {
         self.parallel
     }
 
-    /// Drop the candidates, so that the next query searches anew (a benchmark timing the broad
-    /// phase uses this; the results never depend on it).
+    /// Drop the candidates, so that the next query searches anew (the line-search cap does, so
+    /// that its candidates depend on the move alone, never on earlier searches).
     pub fn forget_pairs(&mut self) {
         self.cover_low.clear();
         self.cover_high.clear();
@@ -334,16 +334,16 @@ impl SelfContactBarrier {
         let within = |(k, pair): (usize, &SurfacePair)| {
             (pair.distance(&gather(x, pair.vertices())) < d_hat).then_some(k as u32)
         };
-        // rayon's collect keeps the order of an indexed iterator: the serial list.
-        self.active = if self.parallel {
-            self.pairs
-                .par_iter()
-                .enumerate()
-                .filter_map(within)
-                .collect()
+        // rayon's extend keeps the order of an indexed iterator: the serial list. The buffer is
+        // reused from configuration to configuration.
+        let mut active = std::mem::take(&mut self.active);
+        active.clear();
+        if self.parallel {
+            active.par_extend(self.pairs.par_iter().enumerate().filter_map(within));
         } else {
-            self.pairs.iter().enumerate().filter_map(within).collect()
-        };
+            active.extend(self.pairs.iter().enumerate().filter_map(within));
+        }
+        self.active = active;
         self.active_at.clear();
         self.active_at.extend(x.iter().map(v3));
     }

@@ -72,6 +72,10 @@ pub fn collision_free_step<const D: usize>(
     ccd: &CcdParams,
 ) -> f64 {
     let parallel = barrier.parallel();
+    // A fresh search over the boxes swept by this move: candidates kept from an earlier search
+    // could add pairs whose conservative CCD stops shorter, and the step would then depend on how
+    // the run got here (a resumed run must take the same steps).
+    barrier.forget_pairs();
     let pairs = barrier.pairs_near_move(x, delta);
     let v3 = |p: &SVector<f64, D>| Vector3::new(p[0], p[1], p[2]);
     let time = |pair: &SurfacePair| {
