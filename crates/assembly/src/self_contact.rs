@@ -587,6 +587,30 @@ impl SelfContactBarrier {
         }
     }
 
+    /// The smallest distance (m) between the two primitives of a pair within d̂ at `x` (∞: none):
+    /// unlike [`SelfContactBarrier::smallest_distance`] it never depends on which candidates an
+    /// earlier search found.
+    pub fn smallest_active_distance<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> f64 {
+        self.active(x);
+        let this = &*self;
+        let distance = |&k: &u32| {
+            let pair = &this.pairs[k as usize];
+            pair.distance(&gather(x, pair.vertices()))
+        };
+        // The minimum does not depend on the order: parallel gives the serial bits.
+        if this.parallel {
+            this.active
+                .par_iter()
+                .map(distance)
+                .reduce(|| f64::INFINITY, f64::min)
+        } else {
+            this.active
+                .iter()
+                .map(distance)
+                .fold(f64::INFINITY, f64::min)
+        }
+    }
+
     /// The numbers of point–triangle and edge–edge pairs within d̂ at `x`.
     pub fn active_counts<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> (usize, usize) {
         self.active(x);

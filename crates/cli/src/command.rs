@@ -656,6 +656,7 @@ fn run_setup<const D: usize>(
                 edge_edge_pairs: c.edge_edge_pairs,
                 stiffness: c.stiffness,
             }),
+            barrier_stiffness_scale: sim.barrier_stiffness_scale(),
             inverted_tetrahedra: (!sim.scene().mesh().tetrahedra().is_empty())
                 .then(|| sim.scene().inverted_tetrahedra(&sim.state().positions)),
             max_stretch: sim.scene().max_stretch(sim.state()),

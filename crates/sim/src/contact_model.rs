@@ -13,6 +13,7 @@
 //! (docs/contact.md).
 
 use hooke_assembly::barrier::Obstacle;
+pub use hooke_solvers::backward_euler::AdaptiveStiffness;
 use nalgebra::SVector;
 
 use crate::error::{finite_vector, non_negative, positive, SimError};
@@ -95,6 +96,12 @@ pub struct BarrierSettings {
     /// acts as a stiff spring towards sticking, above it as μ times the normal force. Default
     /// [`DEFAULT_FRICTION_VELOCITY`].
     pub friction_velocity: f64,
+    /// IPC's adaptive stiffness ([`AdaptiveStiffness`]): the stiffness above (and self-contact's
+    /// κ, made from it) becomes a floor, and one scale s ∈ [1, `max_ratio`] multiplies every
+    /// barrier, set at each step's first iterate by the balance of the barrier's gradient against
+    /// the rest of Φ's and doubled while a gap keeps closing below `gap_share` of d̂. `None`
+    /// (default): the stiffnesses are fixed.
+    pub adaptive_stiffness: Option<AdaptiveStiffness>,
 }
 
 impl Default for BarrierSettings {
@@ -103,6 +110,7 @@ impl Default for BarrierSettings {
             distance: None,
             stiffness: None,
             friction_velocity: DEFAULT_FRICTION_VELOCITY,
+            adaptive_stiffness: None,
         }
     }
 }
@@ -120,6 +128,21 @@ impl BarrierSettings {
             positive("barrier.stiffness", k)?;
         }
         positive("barrier.friction_velocity", self.friction_velocity)?;
+        if let Some(adaptive) = &self.adaptive_stiffness {
+            adaptive.validate().map_err(|e| {
+                let (key, value) = match e.field() {
+                    "AdaptiveStiffness::max_ratio" => {
+                        ("barrier.max_stiffness_ratio", adaptive.max_ratio)
+                    }
+                    _ => ("barrier.stiffness_gap_share", adaptive.gap_share),
+                };
+                let allowed = match e {
+                    hooke_solvers::ParamError::Real { allowed, .. } => allowed,
+                    _ => "in range",
+                };
+                SimError::invalid(key, value, format!("must be {allowed}"))
+            })?;
+        }
         Ok(())
     }
 

@@ -111,7 +111,7 @@ use hooke_solvers::{GlobalSolveKind, MemoryBudget};
 use nalgebra::{SMatrix, SVector};
 use serde::Deserialize;
 
-use crate::contact_model::{BarrierSettings, Contact, SelfContact, Shape};
+use crate::contact_model::{AdaptiveStiffness, BarrierSettings, Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{
@@ -248,6 +248,9 @@ struct BarrierSection {
     distance: Option<f64>,
     stiffness: Option<f64>,
     friction_velocity: Option<f64>,
+    adaptive_stiffness: Option<bool>,
+    max_stiffness_ratio: Option<f64>,
+    stiffness_gap_share: Option<f64>,
 }
 
 /// `[self_contact]`: self-contact of the mesh's surface ([`SelfContact`]).
@@ -1114,10 +1117,26 @@ impl Context<'_> {
                 ));
             }
             let defaults = BarrierSettings::default();
+            let adaptive_given = b.max_stiffness_ratio.is_some() || b.stiffness_gap_share.is_some();
+            let adaptive_on = b
+                .adaptive_stiffness
+                .unwrap_or(defaults.adaptive_stiffness.is_some());
+            if adaptive_given && !adaptive_on {
+                return Err(self.invalid(
+                    "barrier.adaptive_stiffness",
+                    "max_stiffness_ratio and stiffness_gap_share set the adaptive stiffness, which \
+                     is off: set adaptive_stiffness = true or leave them out",
+                ));
+            }
+            let adaptive_defaults = defaults.adaptive_stiffness.unwrap_or_default();
             let barrier = BarrierSettings {
                 distance: b.distance,
                 stiffness: b.stiffness,
                 friction_velocity: b.friction_velocity.unwrap_or(defaults.friction_velocity),
+                adaptive_stiffness: adaptive_on.then(|| AdaptiveStiffness {
+                    max_ratio: b.max_stiffness_ratio.unwrap_or(adaptive_defaults.max_ratio),
+                    gap_share: b.stiffness_gap_share.unwrap_or(adaptive_defaults.gap_share),
+                }),
             };
             scene = scene.with_barrier(barrier).map_err(sim("barrier"))?;
         }

@@ -429,6 +429,9 @@ impl<const D: usize> BackwardEuler<D> {
         objective
             .set_self_contact(scene.self_contact_model())
             .map_err(SimError::SolverParameter)?;
+        objective
+            .set_adaptive_stiffness(scene.barrier().adaptive_stiffness)
+            .map_err(SimError::SolverParameter)?;
         let unknowns = vec![0.0; objective.dim()];
         let pd_factor = |pd_params: PdParams| {
             let pd_params = PdParams {
@@ -531,6 +534,19 @@ impl<const D: usize> BackwardEuler<D> {
         match &mut self.solver {
             Solver::Newton { objective, .. } | Solver::PreconditionedByPd { objective, .. } => {
                 objective.self_contact_state(positions)
+            }
+            _ => None,
+        }
+    }
+
+    /// The scale the barriers' stiffnesses carry at the end of the last step under IPC's adaptive
+    /// stiffness (`None` when it is off, or for a solver without the barrier objective).
+    pub(crate) fn barrier_stiffness_scale(&self) -> Option<f64> {
+        match &self.solver {
+            Solver::Newton { objective, .. } | Solver::PreconditionedByPd { objective, .. } => {
+                objective
+                    .adaptive_stiffness()
+                    .map(|_| objective.stiffness_scale())
             }
             _ => None,
         }

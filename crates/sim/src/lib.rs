@@ -39,7 +39,7 @@ pub mod scenes;
 mod simulation;
 pub mod stability;
 
-pub use contact_model::{BarrierSettings, Contact, SelfContact, Shape};
+pub use contact_model::{AdaptiveStiffness, BarrierSettings, Contact, SelfContact, Shape};
 pub use damping::Damping;
 pub use error::{SimError, SolverFailure};
 pub use forces::ExternalForce;

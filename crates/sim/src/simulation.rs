@@ -285,6 +285,16 @@ impl<const D: usize> Simulation<D> {
         self.self_contact
     }
 
+    /// The scale s (dimensionless, ≥ 1) that IPC's adaptive stiffness
+    /// ([`crate::BarrierSettings::adaptive_stiffness`]) put on every barrier's stiffness in the
+    /// last step, as it stood at the step's end; `None` when it is off or the integrator has no
+    /// barrier in its objective.
+    pub fn barrier_stiffness_scale(&self) -> Option<f64> {
+        self.implicit
+            .as_ref()
+            .and_then(|i| i.barrier_stiffness_scale())
+    }
+
     /// Recompute [`Simulation::self_contact_state`] for the current positions.
     fn refresh_self_contact(&mut self) {
         if let Some(implicit) = &mut self.implicit {

@@ -17,11 +17,14 @@ mod obstacles;
 mod patches;
 mod relaxation;
 mod self_contact;
+mod stiffness;
 use obstacles::StepContact;
 pub use obstacles::{ContactModel, TIME_OF_IMPACT_SHARE};
 use patches::PatchCover;
 use self_contact::StepSelfContact;
 pub use self_contact::{collision_free_step, SelfContactModel, SelfContactState};
+use stiffness::StiffnessScale;
+pub use stiffness::{AdaptiveStiffness, DEFAULT_GAP_SHARE, DEFAULT_MAX_STIFFNESS_RATIO};
 
 /// The default θ of [`BackwardEulerStep::set_definite_share`]: half of every vertex's mass may
 /// hold its compressed springs, half is kept as the margin of definiteness.
@@ -144,6 +147,9 @@ pub struct BackwardEulerStep<const D: usize> {
     contact: Option<Box<StepContact<D>>>,
     /// Self-contact barriers ([`BackwardEulerStep::set_self_contact`]); `None`: none, and no cost.
     self_contact: Option<Box<StepSelfContact>>,
+    /// IPC's adaptive scale of every barrier's stiffness
+    /// ([`BackwardEulerStep::set_adaptive_stiffness`]); `None`: the models' stiffnesses.
+    adaptive_stiffness: Option<StiffnessScale>,
     /// The vertex pairs the Hessian's pattern holds beyond the springs (the self-contact pairs
     /// seen in this step), sorted, and the pairs the last pattern update asked for (scratch).
     links: Vec<[u32; 2]>,
@@ -279,6 +285,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             dashpot_directions: Vec::new(),
             contact: None,
             self_contact: None,
+            adaptive_stiffness: None,
             links: Vec::new(),
             wanted_links: Vec::new(),
             links_replaced_next: false,
@@ -409,6 +416,11 @@ impl<const D: usize> BackwardEulerStep<D> {
         self.y.copy_from_slice(y);
         self.x.copy_from_slice(positions);
         self.links_replaced_next = self.self_contact.is_some();
+        // Every step starts from the models' stiffnesses: the scale depends on this step's state
+        // alone (see `balance_stiffness` at the end).
+        if self.adaptive_stiffness.is_some() {
+            self.apply_stiffness_scale(1.0);
+        }
         let full = self.counter.is_some();
         if let Some(v) = velocities {
             assert_eq!(v.len(), positions.len(), "one velocity per vertex");
@@ -453,6 +465,143 @@ impl<const D: usize> BackwardEulerStep<D> {
             if let Some(velocities) = velocities {
                 self.try_moving_start(velocities, unknowns);
             }
+        }
+        if self.adaptive_stiffness.is_some() {
+            self.balance_stiffness(unknowns);
+        }
+    }
+
+    /// IPC's adaptive barrier stiffness (`None`: the models' stiffnesses, the default): see
+    /// [`AdaptiveStiffness`]. It scales the obstacles' barriers ([`BackwardEulerStep::set_contact`])
+    /// and self-contact's ([`BackwardEulerStep::set_self_contact`]) alike, from each step's
+    /// first iterate on; without either it does nothing.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming a setting out of range ([`AdaptiveStiffness::validate`]).
+    pub fn set_adaptive_stiffness(
+        &mut self,
+        settings: Option<AdaptiveStiffness>,
+    ) -> Result<(), ParamError> {
+        if let Some(settings) = &settings {
+            settings.validate()?;
+        }
+        self.adaptive_stiffness = settings.map(StiffnessScale::new);
+        self.apply_stiffness_scale(1.0);
+        Ok(())
+    }
+
+    /// The adaptive stiffness's settings, if on.
+    pub fn adaptive_stiffness(&self) -> Option<AdaptiveStiffness> {
+        self.adaptive_stiffness.map(|a| a.settings)
+    }
+
+    /// The scale s the barriers' stiffnesses carry now (dimensionless, ≥ 1; 1 without the adaptive
+    /// stiffness).
+    pub fn stiffness_scale(&self) -> f64 {
+        self.adaptive_stiffness.map_or(1.0, |a| a.scale)
+    }
+
+    /// Multiply every barrier's model stiffness by `scale`.
+    fn apply_stiffness_scale(&mut self, scale: f64) {
+        if let Some(contact) = &mut self.contact {
+            contact.set_stiffness_scale(scale);
+        }
+        if let Some(terms) = &mut self.self_contact {
+            terms.set_stiffness_scale(scale);
+        }
+        if let Some(adaptive) = &mut self.adaptive_stiffness {
+            adaptive.scale = scale;
+        }
+    }
+
+    /// The smallest gap at the full positions `x` as a share of its d̂, over every free vertex
+    /// against every obstacle and every self-contact pair within d̂ (1 where none is within d̂).
+    fn relative_gap(&mut self) -> f64 {
+        let mut gap = 1.0f64;
+        if let Some(contact) = &self.contact {
+            let d = contact.smallest_distance(self.free.free_vertices(), &self.x);
+            gap = gap.min(d / contact.model.distance);
+        }
+        if let Some(terms) = &mut self.self_contact {
+            let d = terms.barrier.smallest_active_distance(&self.x);
+            gap = gap.min(d / terms.barrier.model().distance);
+        }
+        gap
+    }
+
+    /// Set the adaptive scale at the first iterate `unknowns` from the balance of gradients (see
+    /// [`AdaptiveStiffness`]): g the gradient of inertia and springs, b that of h² times the
+    /// barriers at the models' stiffnesses (friction and the dashpot left out), over the free
+    /// vertices. The obstacles' friction, lagged at the models' stiffnesses, takes the scale too.
+    fn balance_stiffness(&mut self, unknowns: &[f64]) {
+        let Some(adaptive) = self.adaptive_stiffness else {
+            return;
+        };
+        if self.contact.is_none() && self.self_contact.is_none() {
+            return;
+        }
+        self.expand(unknowns);
+        self.forces
+            .compute(&self.springs, &self.x, None, &mut self.force, self.parallel);
+        for b in self.contact_scratch.iter_mut() {
+            *b = SVector::zeros();
+        }
+        if let Some(contact) = &self.contact {
+            contact.add_gradient(
+                self.free.free_vertices(),
+                &self.x,
+                1.0,
+                false,
+                &mut self.contact_scratch,
+            );
+        }
+        if let Some(terms) = &mut self.self_contact {
+            terms
+                .barrier
+                .add_gradient(&self.x, 1.0, &mut self.contact_scratch);
+        }
+        let h2 = self.h * self.h;
+        let (mut rest_dot_barrier, mut barrier_squared) = (0.0, 0.0);
+        for &v in self.free.free_vertices() {
+            let v = v as usize;
+            let rest = (self.x[v] - self.y[v]) * self.masses[v] - self.force[v] * h2;
+            let barrier = self.contact_scratch[v] * h2;
+            rest_dot_barrier += rest.dot(&barrier);
+            barrier_squared += barrier.norm_squared();
+        }
+        let scale = adaptive
+            .settings
+            .balanced_scale(rest_dot_barrier, barrier_squared);
+        self.apply_stiffness_scale(scale);
+        let gap = self.relative_gap();
+        if let Some(a) = &mut self.adaptive_stiffness {
+            a.start(scale, gap);
+        }
+        if let Some(contact) = &mut self.contact {
+            contact.scale_friction(scale);
+        }
+    }
+
+    /// After an accepted iterate `unknowns`: double the adaptive scale if the smallest gap keeps
+    /// closing below its share of d̂ (see [`AdaptiveStiffness`]). Returns whether Φ changed.
+    pub(crate) fn adapt_stiffness(&mut self, unknowns: &[f64]) -> bool {
+        if self.adaptive_stiffness.is_none()
+            || (self.contact.is_none() && self.self_contact.is_none())
+        {
+            return false;
+        }
+        self.expand(unknowns);
+        let gap = self.relative_gap();
+        let doubled = self
+            .adaptive_stiffness
+            .as_mut()
+            .and_then(|a| a.after_iterate(gap));
+        match doubled {
+            Some(scale) => {
+                self.apply_stiffness_scale(scale);
+                true
+            }
+            None => false,
         }
     }
 

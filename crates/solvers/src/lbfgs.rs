@@ -337,6 +337,7 @@ impl Lbfgs {
                 *s = step;
                 *x += step;
             }
+            let adapted = !small && problem.after_iterate(x);
             problem.gradient(x, &mut self.g_new);
             let t = &mut self.t[slot * n..(slot + 1) * n];
             for ((t, new), old) in t.iter_mut().zip(&self.g_new).zip(&self.g) {
@@ -349,7 +350,10 @@ impl Lbfgs {
             let curvature = dot(s_of(&self.s, slot, n), t_of(&self.t, slot, n));
             let sizes = norm(s_of(&self.s, slot, n)) * norm(t_of(&self.t, slot, n));
             // Positive beyond the rounding of the dot product, or H would lose definiteness.
-            if curvature > f64::EPSILON * sizes && curvature.is_finite() {
+            if adapted {
+                // The two gradients belong to different objectives: their difference is no
+                // curvature of either, and the pair is dropped.
+            } else if curvature > f64::EPSILON * sizes && curvature.is_finite() {
                 self.rho[slot] = 1.0 / curvature;
                 newest = slot;
                 stored = (stored + 1).min(p.history);

@@ -208,6 +208,13 @@ pub trait NewtonProblem {
     fn relax(&mut self, _x: &mut [f64], _relaxation: Relaxation) -> Option<RelaxationWork> {
         None
     }
+    /// Called after every accepted step that does not end the solve (after the relaxation, before Φ
+    /// and its gradient at the new iterate `x`): the problem may change its own parameters there,
+    /// as backward Euler's adaptive barrier stiffness does. Returns whether Φ changed; the solvers
+    /// then judge progress on the new Φ only. The default changes nothing and returns `false`.
+    fn after_iterate(&mut self, _x: &[f64]) -> bool {
+        false
+    }
     /// Get ready to [`NewtonProblem::relax`] with `relaxation`: build once what it needs (for
     /// backward Euler, the elimination's patches and their symbolic analyses), so that relaxing
     /// allocates nothing. [`Newton::minimize`] calls it before its first iteration. The default
@@ -1916,6 +1923,10 @@ impl Newton {
             // would only inflate the shift. Stop; converged only if the gradient is at its proven
             // rounding floor (checked below, at the new iterate), stagnated otherwise.
             let stagnated = alpha < 1.0 && -change <= STAGNATION_ULPS * f64::EPSILON * phi.abs();
+            // A problem that changed Φ (a stiffer barrier) has a new minimum to go to: no stop
+            // for stagnation on the old one.
+            let adapted = !small && problem.after_iterate(x);
+            let stagnated = stagnated && !adapted;
             phi = problem.objective(x);
             problem.gradient(x, &mut self.g);
             gradient = dot(&self.g, &self.g).sqrt() * scale;

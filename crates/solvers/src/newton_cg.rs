@@ -338,6 +338,10 @@ impl NewtonCg {
             for (x, s) in x.iter_mut().zip(&self.step) {
                 *x += alpha * s;
             }
+            if !small {
+                // Φ may change here (a stiffer barrier); the next iteration works on the new one.
+                problem.after_iterate(x);
+            }
             problem.gradient(x, &mut self.g);
             report.iterations += 1;
             report.objective_change += change;

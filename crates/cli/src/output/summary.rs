@@ -138,6 +138,12 @@ pub struct StepRecord {
     /// d̂ and the barrier's stiffness κ (N/m).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub self_contact: Option<SelfContactRecord>,
+    /// The scale s (dimensionless, ≥ 1) on every barrier's stiffness at the end of the step under
+    /// the adaptive stiffness (`[barrier] adaptive_stiffness`): κ̂ s per unit mass against
+    /// obstacles, `self_contact.stiffness` already includes it. Absent when it is off and in older
+    /// files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub barrier_stiffness_scale: Option<f64>,
     /// Tetrahedra turned inside out (signed volume of the opposite sign to the rest mesh's, or
     /// zero): present for tetrahedral meshes, absent otherwise and in older files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -247,6 +253,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.375,
                     contact_distance: None,
+                    barrier_stiffness_scale: None,
                     self_contact: None,
                     inverted_tetrahedra: None,
                     max_stretch: 1.0625,
@@ -265,6 +272,7 @@ mod tests {
                     contact_energy: None,
                     total_energy: -0.5,
                     contact_distance: None,
+                    barrier_stiffness_scale: None,
                     self_contact: None,
                     inverted_tetrahedra: None,
                     max_stretch: 1.1,

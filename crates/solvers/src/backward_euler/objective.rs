@@ -119,7 +119,13 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         }
         if let Some(contact) = &self.contact {
             // The contact force −∇E_c joins the spring forces.
-            contact.add_gradient(self.free.free_vertices(), &self.x, -1.0, &mut self.force);
+            contact.add_gradient(
+                self.free.free_vertices(),
+                &self.x,
+                -1.0,
+                true,
+                &mut self.force,
+            );
         }
         if let Some(terms) = &mut self.self_contact {
             terms.barrier.add_gradient(&self.x, -1.0, &mut self.force);
@@ -176,6 +182,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                     self.free.free_vertices(),
                     &self.x,
                     1.0,
+                    true,
                     &mut self.contact_scratch,
                 );
             }
@@ -343,6 +350,10 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
     }
 
     /// `None` (nothing done) with contact: see [`NewtonProblem::prepare_relaxation`].
+    fn after_iterate(&mut self, xf: &[f64]) -> bool {
+        self.adapt_stiffness(xf)
+    }
+
     fn relax(&mut self, xf: &mut [f64], relaxation: Relaxation) -> Option<RelaxationWork> {
         if self.contact.is_some() || self.self_contact.is_some() {
             return None;

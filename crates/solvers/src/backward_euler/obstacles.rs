@@ -45,8 +45,12 @@ pub struct ContactModel<const D: usize> {
 #[derive(Debug)]
 pub(crate) struct StepContact<const D: usize> {
     pub(crate) model: ContactModel<D>,
-    /// κ_v per vertex (N/m).
+    /// κ_v per vertex (N/m): the model's κ̂ m_v times the adaptive scale.
     stiffness: Vec<f64>,
+    /// The model's κ̂ m_v per vertex (N/m), unscaled.
+    base_stiffness: Vec<f64>,
+    /// The adaptive scale s the stiffnesses carry (1: the model's).
+    stiffness_scale: f64,
     /// The lagged frictional contacts of this step: (vertex, contact).
     friction: Vec<(u32, LaggedFriction<D>)>,
     /// ε_v h (m).
@@ -59,8 +63,10 @@ pub(crate) struct StepContact<const D: usize> {
 #[derive(Debug)]
 struct SphereSurface {
     triangles: Vec<[u32; 3]>,
-    /// κ_t = κ̂ × the mean mass of the triangle's vertices (N/m).
+    /// κ_t = κ̂ × the mean mass of the triangle's vertices (N/m), times the adaptive scale.
     stiffness: Vec<f64>,
+    /// κ_t unscaled (N/m).
+    base_stiffness: Vec<f64>,
     /// Whether every pair of the triangle's free vertices is joined by a spring (the Hessian's
     /// pattern then holds its whole 9×9 block; otherwise only its vertex blocks are added, which
     /// keeps the sum positive semidefinite).
@@ -106,10 +112,12 @@ impl SphereSurface {
 
 impl<const D: usize> StepContact<D> {
     pub(crate) fn new(model: ContactModel<D>, masses: &[f64], h: f64) -> Self {
-        let stiffness = masses.iter().map(|&m| model.stiffness * m).collect();
+        let stiffness: Vec<f64> = masses.iter().map(|&m| model.stiffness * m).collect();
         let friction_length = model.friction_velocity * h;
         StepContact {
+            base_stiffness: stiffness.clone(),
             stiffness,
+            stiffness_scale: 1.0,
             friction: Vec::new(),
             friction_length,
             surface: None,
@@ -139,9 +147,18 @@ impl<const D: usize> StepContact<D> {
             self.surface = None;
             return;
         }
-        let stiffness = triangles
+        let base_stiffness: Vec<f64> = triangles
             .iter()
-            .map(|t| t.iter().map(|&v| self.stiffness[v as usize]).sum::<f64>() / 3.0)
+            .map(|t| {
+                t.iter()
+                    .map(|&v| self.base_stiffness[v as usize])
+                    .sum::<f64>()
+                    / 3.0
+            })
+            .collect();
+        let stiffness = base_stiffness
+            .iter()
+            .map(|k| k * self.stiffness_scale)
             .collect();
         let coupled = triangles
             .iter()
@@ -154,10 +171,35 @@ impl<const D: usize> StepContact<D> {
         self.surface = Some(SphereSurface {
             triangles,
             stiffness,
+            base_stiffness,
             coupled,
             spheres,
             free,
         });
+    }
+
+    /// Multiply the model's stiffnesses by `scale` (the adaptive stiffness's s ≥ 1).
+    pub(crate) fn set_stiffness_scale(&mut self, scale: f64) {
+        if scale == self.stiffness_scale {
+            return;
+        }
+        self.stiffness_scale = scale;
+        for (k, base) in self.stiffness.iter_mut().zip(&self.base_stiffness) {
+            *k = base * scale;
+        }
+        if let Some(surface) = &mut self.surface {
+            for (k, base) in surface.stiffness.iter_mut().zip(&surface.base_stiffness) {
+                *k = base * scale;
+            }
+        }
+    }
+
+    /// Multiply the lagged friction's normal forces by `scale` (lagged at the models' stiffnesses,
+    /// they then carry the adaptive scale of the step's start).
+    pub(crate) fn scale_friction(&mut self, scale: f64) {
+        for (_, lagged) in &mut self.friction {
+            lagged.normal_force *= scale;
+        }
     }
 
     /// Lag the friction at the step's start `start` (free vertices `free`): every vertex within d̂
@@ -278,14 +320,14 @@ impl<const D: usize> StepContact<D> {
         sum
     }
 
-    /// Add the contact forces' negative, ∇(energy) · `scale`, into `gradient` per vertex
-    /// (`out[v] += scale ∇_v`), and their magnitudes into `magnitude` if given (for the gradient's
-    /// rounding bound).
+    /// Add the contact forces' negative, ∇(energy) · `scale`, into `out` per vertex
+    /// (`out[v] += scale ∇_v`); the lagged friction's too if `with_friction`.
     pub(crate) fn add_gradient(
         &self,
         free: &[u32],
         x: &[SVector<f64, D>],
         scale: f64,
+        with_friction: bool,
         out: &mut [SVector<f64, D>],
     ) {
         let d_hat = self.model.distance;
@@ -303,7 +345,7 @@ impl<const D: usize> StepContact<D> {
                 }
             }
         }
-        for (v, lagged) in &self.friction {
+        for (v, lagged) in self.friction.iter().filter(|_| with_friction) {
             let v = *v as usize;
             out[v] += lagged.terms(&x[v], self.friction_length).gradient * scale;
         }

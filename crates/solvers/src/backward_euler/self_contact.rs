@@ -37,15 +37,23 @@ pub struct SelfContactState {
 pub(crate) struct StepSelfContact {
     pub(crate) barrier: SelfContactBarrier,
     ccd: CcdParams,
+    /// The model's κ (N/m), before the adaptive scale.
+    base_stiffness: f64,
 }
 
 impl StepSelfContact {
     /// The terms for `model` over `free.len()` vertices, `free[v]` telling which move.
     pub(crate) fn new(model: SelfContactModel, free: Vec<bool>) -> Self {
         StepSelfContact {
+            base_stiffness: model.stiffness,
             barrier: SelfContactBarrier::new(model, free),
             ccd: CcdParams::default(),
         }
+    }
+
+    /// Multiply the model's κ by `scale` (the adaptive stiffness's s ≥ 1).
+    pub(crate) fn set_stiffness_scale(&mut self, scale: f64) {
+        self.barrier.set_stiffness(self.base_stiffness * scale);
     }
 
     /// [`collision_free_step`] of the barrier's pairs along `delta` from `x`.
