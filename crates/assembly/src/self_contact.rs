@@ -112,6 +112,8 @@ pub struct SelfContactBarrier {
     /// `active_at` empty: not known.
     active: Vec<u32>,
     active_at: Vec<Vector3<f64>>,
+    /// Scratch: each candidate's energy change.
+    changes: Vec<f64>,
     /// Scratch: one batch of terms, and of gradients.
     batch: Vec<Option<FeatureTerms<12>>>,
     gradients: Vec<Option<SVector<f64, 12>>>,
@@ -163,6 +165,7 @@ impl SelfContactBarrier {
             motion: vec![Vector3::zeros(); n],
             active: Vec::new(),
             active_at: Vec::new(),
+            changes: Vec::new(),
             batch: Vec::new(),
             gradients: Vec::new(),
             parallel: true,
@@ -391,10 +394,11 @@ impl SelfContactBarrier {
         delta: &[SVector<f64, D>],
     ) -> f64 {
         self.pairs_near_move(x, delta);
+        let mut changes = std::mem::take(&mut self.changes);
+        changes.clear();
         let this = &*self;
         let d_hat = this.model.distance;
-        deterministic_sum(this.pairs.len(), this.parallel, |k| {
-            let pair = &this.pairs[k];
+        let change = |pair: &SurfacePair| {
             let v = pair.vertices();
             let start = gather(x, v);
             let end = v.map(|i| v3(&(x[i as usize] + delta[i as usize])));
@@ -413,7 +417,22 @@ impl SelfContactBarrier {
                     this.pair_energy(pair, &end) - this.pair_energy(pair, &start)
                 }
             }
-        })
+        };
+        // rayon's extend keeps the serial order.
+        if this.parallel {
+            changes.par_extend(this.pairs.par_iter().map(change));
+        } else {
+            changes.extend(this.pairs.iter().map(change));
+        }
+        // The candidates beyond d̂ at both ends (most of them) add exact zeros, and which of them
+        // are candidates depends on earlier searches: only the others are summed, in pair order
+        // (the candidates are sorted), so the sum's bits depend on the move alone.
+        let sum = changes
+            .iter()
+            .filter(|c| **c != 0.0)
+            .fold(-0.0, |sum, c| sum + c);
+        self.changes = changes;
+        sum
     }
 
     /// Call `each(free, vertices, terms)` for every pair within d̂ at `x`, in pair order, with its

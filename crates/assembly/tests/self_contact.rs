@@ -156,3 +156,45 @@ proptest! {
         prop_assert_eq!(dense_hessian(&mut serial, &x, Definiteness::Exact), h);
     }
 }
+
+/// The energy change of a move has the same bits whether the candidates were searched for this
+/// move alone or are a larger set kept from an earlier search (which reuses them while its boxes
+/// cover the move): only terms within d̂ at one end of the move count, in pair order.
+#[test]
+fn the_energy_change_does_not_depend_on_earlier_searches() {
+    // 9×9 sheets 0.6 d̂ apart, the upper one with a wobble: dozens of pairs within d̂, and more
+    // candidates within the search's reach.
+    let (x, triangles) = two_sheets(9, 0.6 * D_HAT, 0.3, 0.4, 0.05 * D_HAT);
+    let delta: Vec<Vector3<f64>> = (0..x.len())
+        .map(|k| {
+            let k = k as f64;
+            Vector3::new((k * 0.7).sin(), (k * 1.3).cos(), (k * 0.9).sin()) * (0.05 * D_HAT)
+        })
+        .collect();
+    let mut fresh = barrier(&x, &triangles);
+    let change = fresh.energy_change(&x, &delta);
+    assert!(change.is_finite() && change != 0.0, "{change:e}");
+    // An earlier search along a move that also slides the upper sheet by 0.3 m finds a
+    // superset, whose boxes then cover the move.
+    let mut seasoned = barrier(&x, &triangles);
+    let upper = x.len() / 2;
+    let long_move: Vec<Vector3<f64>> = delta
+        .iter()
+        .enumerate()
+        .map(|(k, d)| d + Vector3::new(if k >= upper { 0.3 } else { 0.0 }, 0.0, 0.0))
+        .collect();
+    seasoned.pairs_near_move(&x, &long_move);
+    let superset = seasoned.pairs_near(&x).len();
+    let exact = fresh.pairs_near_move(&x, &delta).len();
+    assert!(
+        superset > exact,
+        "{superset} candidates kept, {exact} found afresh"
+    );
+    for parallel in [false, true] {
+        seasoned.set_parallel(parallel);
+        assert_eq!(
+            seasoned.energy_change(&x, &delta).to_bits(),
+            change.to_bits()
+        );
+    }
+}
