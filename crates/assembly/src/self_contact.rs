@@ -395,7 +395,6 @@ impl SelfContactBarrier {
     ) -> f64 {
         self.pairs_near_move(x, delta);
         let mut changes = std::mem::take(&mut self.changes);
-        changes.clear();
         let this = &*self;
         let d_hat = this.model.distance;
         let change = |pair: &SurfacePair| {
@@ -418,11 +417,17 @@ impl SelfContactBarrier {
                 }
             }
         };
-        // rayon's extend keeps the serial order.
+        // Into the kept buffer, in place (rayon's extend would allocate per call).
+        changes.resize(this.pairs.len(), 0.0);
         if this.parallel {
-            changes.par_extend(this.pairs.par_iter().map(change));
+            changes
+                .par_iter_mut()
+                .zip(this.pairs.par_iter())
+                .for_each(|(c, pair)| *c = change(pair));
         } else {
-            changes.extend(this.pairs.iter().map(change));
+            for (c, pair) in changes.iter_mut().zip(&this.pairs) {
+                *c = change(pair);
+            }
         }
         // The candidates beyond d̂ at both ends (most of them) add exact zeros, and which of them
         // are candidates depends on earlier searches: only the others are summed, in pair order

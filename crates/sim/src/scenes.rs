@@ -3,7 +3,7 @@
 use hooke_mesh::generators::{self, SEED_2D_REST_LENGTH};
 use nalgebra::{SVector, Vector2, Vector3};
 
-use crate::contact_model::{Contact, SelfContact, Shape};
+use crate::contact_model::{AdaptiveStiffness, BarrierSettings, Contact, SelfContact, Shape};
 use crate::damping::Damping;
 use crate::forces::ExternalForce;
 use crate::integrator::{Integrator, Settings};
@@ -237,6 +237,17 @@ fn lifted_cloth(n: usize, y: f64) -> Result<hooke_mesh::SpringMesh3, SimError> {
     )
 }
 
+/// The barrier of the scenes with self-contact: the defaults with IPC's adaptive stiffness
+/// (docs/contact.md), which takes cloth-drape-40 in 1,121 Newton iterations instead of 2,009 and
+/// cloth-twist-40 in 3,401 instead of 4,093, every frame converged. (The library's default keeps the
+/// stiffness fixed: its energy guarantee on convex obstacles holds only for a fixed stiffness.)
+fn adaptive_barrier() -> BarrierSettings {
+    BarrierSettings {
+        adaptive_stiffness: Some(AdaptiveStiffness::default()),
+        ..BarrierSettings::default()
+    }
+}
+
 /// A ground plane y = `height` (m), normal +y, with friction `friction`.
 fn ground(height: f64, friction: f64) -> Contact<3> {
     Contact {
@@ -269,7 +280,8 @@ pub fn cloth_drape(n: usize) -> Result<Setup<3>, SimError> {
             },
             ground(DRAPE_GROUND, DRAPE_FRICTION),
         ])?
-        .with_self_contact(Some(SelfContact::default()))?;
+        .with_self_contact(Some(SelfContact::default()))?
+        .with_barrier(adaptive_barrier())?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()
@@ -287,7 +299,8 @@ pub fn cloth_fall(n: usize) -> Result<Setup<3>, SimError> {
     let scene = Scene::new(lifted_cloth(n, FALL_HEIGHT)?, FRAME_TIME_STEP)?
         .with_forces(vec![gravity_3d()])?
         .with_contacts(vec![ground(0.0, FALL_FRICTION)])?
-        .with_self_contact(Some(SelfContact::default()))?;
+        .with_self_contact(Some(SelfContact::default()))?
+        .with_barrier(adaptive_barrier())?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()
@@ -335,7 +348,8 @@ pub fn cloth_twist(n: usize) -> Result<Setup<3>, SimError> {
         .with_pins(Pins::Vertices(fixed))?
         .with_pin_path(Pins::Vertices(turning), path)?
         .with_forces(vec![gravity_3d()])?
-        .with_self_contact(Some(SelfContact::default()))?;
+        .with_self_contact(Some(SelfContact::default()))?
+        .with_barrier(adaptive_barrier())?;
     let settings = Settings {
         integrator: Integrator::Newton,
         ..Settings::default()
