@@ -480,6 +480,15 @@ impl SelfContactFriction {
             .sort_unstable_by_key(|p| (!p.point_triangle, p.vertices));
     }
 
+    /// Multiply every lagged pair's normal force λ by `scale` (dimensionless, finite, > 0): for a
+    /// barrier whose stiffness is scaled after the lag (an adaptive stiffness set at the step's
+    /// first iterate), so that the friction carries the step's κ as the obstacles' does.
+    pub fn scale_normal_forces(&mut self, scale: f64) {
+        for pair in &mut self.pairs {
+            pair.normal_force *= scale;
+        }
+    }
+
     /// Drop the lagged pairs: no terms until the next lag.
     pub fn clear(&mut self) {
         self.pairs.clear();

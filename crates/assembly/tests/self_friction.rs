@@ -544,6 +544,18 @@ fn the_lag_does_not_depend_on_the_barriers_history() {
         .all(|w| (!w[0].point_triangle, w[0].vertices) < (!w[1].point_triangle, w[1].vertices)));
 }
 
+/// Scaling the normal forces scales the potential and its gradient by the same factor.
+#[test]
+fn scaled_normal_forces_scale_the_terms() {
+    let (x0, triangles) = two_sheets(5e-4, 0.3, 0.6, 2e-5);
+    let mut f = surface(&x0, &triangles, &x0, false);
+    let x: Vec<Vec3> = x0.iter().map(|p| p + Vec3::new(2e-4, 0.0, -1e-4)).collect();
+    let (energy, g) = (f.energy(&x), gradient(&mut f, &x));
+    f.scale_normal_forces(4.0);
+    assert!((f.energy(&x) - 4.0 * energy).abs() <= 1e-14 * energy);
+    assert!((gradient(&mut f, &x) - &g * 4.0).amax() <= 1e-14 * g.amax());
+}
+
 /// μ = 0 lags nothing: no terms, no links.
 #[test]
 fn no_friction_lags_nothing() {
