@@ -25,5 +25,6 @@ mod readme_examples;
 mod resume;
 mod scenes;
 mod self_contact;
+mod self_contact_friction;
 mod sph_cli;
 mod tetrahedralize_cli;

@@ -217,7 +217,7 @@ pub fn friction_f1(y: f64, eps: f64) -> f64 {
 
 /// f₁(y)/y (1/m), finite at y = 0: (2 − y/ε)/ε below ε, 1/y beyond.
 #[inline]
-fn friction_f1_over_y(y: f64, eps: f64) -> f64 {
+pub(crate) fn friction_f1_over_y(y: f64, eps: f64) -> f64 {
     if y >= eps {
         1.0 / y
     } else {
@@ -310,27 +310,42 @@ impl<const D: usize> LaggedFriction<D> {
     pub fn energy_change(&self, x: &SVector<f64, D>, delta: &SVector<f64, D>, eps: f64) -> f64 {
         let u = self.tangential(x);
         let step = self.tangent_part(delta);
-        let moved = u + step;
-        let (y0, y1) = (u.norm(), moved.norm());
-        let sum = y0 + y1;
-        let change = if sum == 0.0 {
-            0.0
-        } else {
-            step.dot(&(u * 2.0 + step)) / sum
-        };
-        let (lo, hi) = if y0 <= y1 { (y0, y1) } else { (y1, y0) };
-        let slope = if lo >= eps {
-            1.0
-        } else if hi < eps {
-            friction_mean_slope_below(lo, hi, eps)
-        } else {
-            // Split at ε: slope 1 on [ε, hi], the cubic's mean on [lo, ε]; a convex combination,
-            // so rounding in the two widths only moves it within [its mean below ε, 1].
-            let (above, below) = (hi - eps, eps - lo);
-            (above + below * friction_mean_slope_below(lo, eps, eps)) / (above + below)
-        };
+        let (change, slope) = friction_f0_change(&u, &step, eps);
         self.coefficient * self.normal_force * change * slope
     }
+}
+
+/// f₀(|u + s|) − f₀(|u|) as (Δy, mean slope) with Δy = s·(2u + s)/(|u + s| + |u|) (m, the change
+/// of y = |u| without cancellation) and the mean of f₁ over the interval between the two values
+/// of y (dimensionless, in [0, 1], in closed form: f₀ is a cubic below ε and linear beyond); the
+/// change is their product. Shared by the obstacles' [`LaggedFriction::energy_change`] (in the
+/// tangent plane, K = D) and self-contact's pair friction (in its 2D tangent coordinates).
+#[inline]
+pub(crate) fn friction_f0_change<const K: usize>(
+    u: &SVector<f64, K>,
+    step: &SVector<f64, K>,
+    eps: f64,
+) -> (f64, f64) {
+    let moved = u + step;
+    let (y0, y1) = (u.norm(), moved.norm());
+    let sum = y0 + y1;
+    let change = if sum == 0.0 {
+        0.0
+    } else {
+        step.dot(&(u * 2.0 + step)) / sum
+    };
+    let (lo, hi) = if y0 <= y1 { (y0, y1) } else { (y1, y0) };
+    let slope = if lo >= eps {
+        1.0
+    } else if hi < eps {
+        friction_mean_slope_below(lo, hi, eps)
+    } else {
+        // Split at ε: slope 1 on [ε, hi], the cubic's mean on [lo, ε]; a convex combination,
+        // so rounding in the two widths only moves it within [its mean below ε, 1].
+        let (above, below) = (hi - eps, eps - lo);
+        (above + below * friction_mean_slope_below(lo, eps, eps)) / (above + below)
+    };
+    (change, slope)
 }
 
 /// The lagged friction of one vertex against one obstacle from its state at the lag point

@@ -8,7 +8,7 @@
 //! by counter-forces on all DOFs instead ([`CounterForce`]), contact with static obstacles for the
 //! implicit solvers, IPC's log barrier and smooth lagged friction per vertex ([`barrier`]), the
 //! barrier on a triangle surface's pairs and against spheres ([`surface_barrier`]) summed over a
-//! surface for self-contact ([`self_contact`]), and
+//! surface for self-contact ([`self_contact`]) with its pairs' lagged friction ([`self_friction`]), and
 //! central finite differences to check them ([`fd`]). With the cargo features `nalgebra-sparse` and `sprs`,
 //! `interop` converts the assembled matrices to those crates' CSC types.
 //!
@@ -29,6 +29,7 @@ pub mod interop;
 pub mod pd;
 mod schedule;
 pub mod self_contact;
+pub mod self_friction;
 pub mod spring;
 pub mod surface_barrier;
 

@@ -55,6 +55,14 @@ pub struct SelfContactModel {
     pub distance: f64,
     /// The barrier's stiffness κ (N/m, > 0): a pair's energy is κ b(d), b in m².
     pub stiffness: f64,
+    /// The Coulomb friction coefficient μ between parts of the surface (dimensionless, finite,
+    /// ≥ 0; 0: frictionless, and friction costs nothing). The pairs' lagged friction is
+    /// [`crate::self_friction`]'s; the barrier itself ignores it.
+    pub friction: f64,
+    /// IPC's friction smoothing velocity ε_v (m/s; finite and > 0 where `friction` > 0): below
+    /// this relative tangential speed friction acts as a stiff spring towards sticking, above it
+    /// as Coulomb's μ λ. The same ε_v as the obstacles' friction.
+    pub friction_velocity: f64,
 }
 
 /// A candidate pair of a surface, by its four vertices.
@@ -114,6 +122,8 @@ pub struct SelfContactBarrier {
     active_at: Vec<Vector3<f64>>,
     /// Scratch: each candidate's energy change.
     changes: Vec<f64>,
+    /// Scratch: per candidate, whether it is within d̂ at `active_at`.
+    within: Vec<bool>,
     /// Scratch: one batch of terms, and of gradients.
     batch: Vec<Option<FeatureTerms<12>>>,
     gradients: Vec<Option<SVector<f64, 12>>>,
@@ -166,6 +176,7 @@ impl SelfContactBarrier {
             active: Vec::new(),
             active_at: Vec::new(),
             changes: Vec::new(),
+            within: Vec::new(),
             batch: Vec::new(),
             gradients: Vec::new(),
             parallel: true,
@@ -334,19 +345,30 @@ impl SelfContactBarrier {
             return;
         }
         let d_hat = self.model.distance;
-        let within = |(k, pair): (usize, &SurfacePair)| {
-            (pair.distance(&gather(x, pair.vertices())) < d_hat).then_some(k as u32)
+        // One flag per candidate, computed in parallel into a kept buffer, then the list in pair
+        // order: the serial list, and no allocation once the buffers have grown (rayon's
+        // `par_extend` collects into a list of new vectors on every call).
+        let mut flags = std::mem::take(&mut self.within);
+        flags.clear();
+        flags.resize(self.pairs.len(), false);
+        let within = |(flag, pair): (&mut bool, &SurfacePair)| {
+            *flag = pair.distance(&gather(x, pair.vertices())) < d_hat;
         };
-        // rayon's extend keeps the order of an indexed iterator: the serial list. The buffer is
-        // reused from configuration to configuration.
+        if self.parallel {
+            flags.par_iter_mut().zip(&self.pairs).for_each(within);
+        } else {
+            flags.iter_mut().zip(&self.pairs).for_each(within);
+        }
         let mut active = std::mem::take(&mut self.active);
         active.clear();
-        if self.parallel {
-            active.par_extend(self.pairs.par_iter().enumerate().filter_map(within));
-        } else {
-            active.extend(self.pairs.iter().enumerate().filter_map(within));
-        }
+        active.extend(
+            flags
+                .iter()
+                .enumerate()
+                .filter_map(|(k, &inside)| inside.then_some(k as u32)),
+        );
         self.active = active;
+        self.within = flags;
         self.active_at.clear();
         self.active_at.extend(x.iter().map(v3));
     }
@@ -588,6 +610,17 @@ impl SelfContactBarrier {
                 }
             }
         }
+    }
+
+    /// The candidate pairs within d̂ at `x` (one position per vertex, m): every pair with a free
+    /// vertex whose primitives are closer than d̂, in the candidates' order (which depends on
+    /// where the broad phase last searched; sort them where the order must not).
+    pub fn pairs_within<const D: usize>(
+        &mut self,
+        x: &[SVector<f64, D>],
+    ) -> impl Iterator<Item = &SurfacePair> + '_ {
+        self.active(x);
+        self.active.iter().map(|&k| &self.pairs[k as usize])
     }
 
     /// The smallest distance (m) between the two primitives of a candidate pair at `x`: exact

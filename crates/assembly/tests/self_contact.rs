@@ -58,6 +58,8 @@ fn barrier(positions: &[Vector3<f64>], triangles: &[[u32; 3]]) -> SelfContactBar
         rest_positions: positions.to_vec(),
         distance: D_HAT,
         stiffness: KAPPA,
+        friction: 0.0,
+        friction_velocity: 1e-3,
     };
     SelfContactBarrier::new(model, vec![true; positions.len()])
 }

@@ -174,24 +174,32 @@ impl BarrierSettings {
 /// Self-contact of the mesh's surface (docs/contact.md): the point–triangle and edge–edge pairs of
 /// its triangles (a cloth's triangles, a solid's boundary faces) within the reach d̂ repel each
 /// other by IPC's barrier, and every line search stops before a pair passes through another, so
-/// the surface never intersects itself. Modelled by the integrators whose step minimises Φ with
-/// the barrier (newton, newton-cg, lbfgs); the others refuse it.
+/// the surface never intersects itself; with `friction` > 0 the pairs also rub, by IPC's smooth
+/// lagged Coulomb friction. Modelled by the integrators whose step minimises Φ with the barrier
+/// (newton, newton-cg, lbfgs); the others refuse it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SelfContact {
     /// The barrier's reach d̂ (m, finite, > 0). `None`: the obstacles' d̂
     /// ([`BarrierSettings::distance`], or its default from the mesh's size).
     pub distance: Option<f64>,
+    /// The Coulomb friction coefficient μ between parts of the surface (dimensionless, finite,
+    /// ≥ 0; default 0, frictionless, which costs nothing). Each pair within d̂ at a step's start
+    /// resists sliding by at most μ times its barrier force there, smoothed below the sliding
+    /// speed [`BarrierSettings::friction_velocity`] (docs/contact.md, "Self-contact friction").
+    pub friction: f64,
 }
 
 impl SelfContact {
     /// Check every value set.
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] naming the value that is not finite and positive.
+    /// [`SimError::InvalidParameter`] naming the value: a reach that is not finite and positive,
+    /// a friction coefficient that is not finite and ≥ 0.
     pub fn validate(&self) -> Result<(), SimError> {
         if let Some(d) = self.distance {
             positive("self_contact.dhat", d)?;
         }
+        non_negative("self_contact.friction", self.friction)?;
         Ok(())
     }
 

@@ -59,7 +59,7 @@
 //! # [self_contact]         # the surface never passes through itself (newton, newton-cg, lbfgs)
 //! # enabled = true         # default true when the section is given
 //! # dhat = 0.001           # d̂, m: the self-contact barrier's reach; default the [barrier]'s distance
-//! # friction = 0.0         # μ between parts of the surface (only 0 for now)
+//! # friction = 0.0         # μ between parts of the surface, ≥ 0 (lagged Coulomb friction)
 //!
 //! # [initial]              # the state at time 0; default: at rest
 //! # velocity = [0.0, -5.0, 0.0]   # m/s, every vertex but the pinned ones
@@ -1141,25 +1141,18 @@ impl Context<'_> {
             scene = scene.with_barrier(barrier).map_err(sim("barrier"))?;
         }
         if let Some(c) = &doc.self_contact {
-            if let Some(mu) = c.friction {
-                if !(mu.is_finite() && mu >= 0.0) {
-                    return Err(self.invalid(
-                        "self_contact.friction",
-                        format!("{mu} must be finite and ≥ 0"),
-                    ));
-                }
-                if mu > 0.0 {
-                    return Err(self.invalid(
-                        "self_contact.friction",
-                        format!(
-                            "{mu}: friction between parts of the surface is not modelled yet; \
-                             give 0 or leave the key out"
-                        ),
-                    ));
-                }
+            let friction = c.friction.unwrap_or(0.0);
+            if !(friction.is_finite() && friction >= 0.0) {
+                return Err(self.invalid(
+                    "self_contact.friction",
+                    format!("{friction} must be finite and ≥ 0"),
+                ));
             }
             if self_contact_on {
-                let settings = SelfContact { distance: c.dhat };
+                let settings = SelfContact {
+                    distance: c.dhat,
+                    friction,
+                };
                 scene = scene
                     .with_self_contact(Some(settings))
                     .map_err(sim("self_contact"))?;

@@ -547,7 +547,9 @@ impl<const D: usize> Scene<D> {
 
     /// The self-contact model of the minimising implicit integrators: the surface
     /// ([`Scene::surface_triangles`]), the mesh's initial positions as the rest positions, d̂ and
-    /// κ resolved ([`SelfContact::resolve`]); `None` without self-contact (or in 2D).
+    /// κ resolved ([`SelfContact::resolve`]), the friction coefficient μ ([`SelfContact::friction`])
+    /// with the barrier's smoothing velocity ε_v ([`BarrierSettings::friction_velocity`]); `None`
+    /// without self-contact (or in 2D).
     pub fn self_contact_model(&self) -> Option<SelfContactModel> {
         let settings = self.self_contact?;
         if D != 3 {
@@ -563,6 +565,8 @@ impl<const D: usize> Scene<D> {
                 .collect(),
             distance,
             stiffness,
+            friction: settings.friction,
+            friction_velocity: self.barrier.friction_velocity,
         })
     }
 

@@ -351,7 +351,7 @@ impl<const D: usize> BackwardEulerStep<D> {
     pub fn set_parallel(&mut self, parallel: bool) {
         self.parallel = parallel;
         if let Some(terms) = &mut self.self_contact {
-            terms.barrier.set_parallel(parallel);
+            terms.set_parallel(parallel);
         }
     }
 
@@ -376,8 +376,8 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// x_n at free vertices; the pinned ones are held there), and write the initial guess into
     /// `unknowns` (with counter-forces, the pinned unknowns get the pinned positions): the free
     /// part of `y`; with obstacles ([`BackwardEulerStep::set_contact`]) y only if no vertex meets
-    /// an obstacle on its straight way from x_n to y, x_n otherwise; and the friction is lagged at
-    /// x_n.
+    /// an obstacle on its straight way from x_n to y, x_n otherwise; and the friction (obstacles'
+    /// and self-contact's) is lagged at x_n.
     /// Call [`BackwardEulerStep::set_contact`] first.
     ///
     /// # Panics
@@ -448,6 +448,8 @@ impl<const D: usize> BackwardEulerStep<D> {
         };
         if let Some(self_contact) = &mut self.self_contact {
             share = share.min(self_contact.max_step(positions, &self.contact_scratch));
+            // The pairs' friction, as the obstacles', is lagged at x_n.
+            self_contact.lag_friction(positions, self.h);
         }
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
             let v = v as usize;
@@ -532,7 +534,8 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// Set the adaptive scale at the first iterate `unknowns` from the balance of gradients (see
     /// [`AdaptiveStiffness`]): g the gradient of inertia and springs, b that of h² times the
     /// barriers at the models' stiffnesses (friction and the dashpot left out), over the free
-    /// vertices. The obstacles' friction, lagged at the models' stiffnesses, takes the scale too.
+    /// vertices. The friction (obstacles' and self-contact's), lagged at the models' stiffnesses,
+    /// takes the scale too.
     fn balance_stiffness(&mut self, unknowns: &[f64]) {
         let Some(adaptive) = self.adaptive_stiffness else {
             return;
@@ -579,6 +582,9 @@ impl<const D: usize> BackwardEulerStep<D> {
         }
         if let Some(contact) = &mut self.contact {
             contact.scale_friction(scale);
+        }
+        if let Some(terms) = &mut self.self_contact {
+            terms.scale_friction(scale);
         }
     }
 
@@ -723,11 +729,15 @@ impl<const D: usize> BackwardEulerStep<D> {
     /// ([`crate::NewtonProblem::max_step_length`], by additive CCD), and the Hessian's pattern
     /// grows by the vertex pairs that active pairs couple ([`crate::NewtonProblem::update_pattern`]).
     /// The surface must be free of intersections and every pair apart (d > 0) at the start of each
-    /// step; the caller checks it.
+    /// step; the caller checks it. With `model.friction` μ > 0, h² times the pairs' lagged
+    /// friction potential joins Φ, lagged at each step's start ([`BackwardEulerStep::set_step`];
+    /// `hooke_assembly::self_friction`); μ = 0 adds nothing.
     ///
     /// # Errors
-    /// [`ParamError`] if D ≠ 3, the distance or stiffness is not finite and positive, a triangle
-    /// names a vertex out of range or repeats one, or there is not one rest position per vertex.
+    /// [`ParamError`] if D ≠ 3, the distance or stiffness is not finite and positive, the friction
+    /// coefficient is not finite and ≥ 0 (or, with friction, its velocity not finite and
+    /// positive), a triangle names a vertex out of range or repeats one, or there is not one rest
+    /// position per vertex.
     pub fn set_self_contact(&mut self, model: Option<SelfContactModel>) -> Result<(), ParamError> {
         let Some(model) = model else {
             self.self_contact = None;
@@ -742,6 +752,13 @@ impl<const D: usize> BackwardEulerStep<D> {
         }
         crate::params::positive("SelfContactModel::distance", model.distance)?;
         crate::params::positive("SelfContactModel::stiffness", model.stiffness)?;
+        crate::params::non_negative("SelfContactModel::friction", model.friction)?;
+        if model.friction > 0.0 {
+            crate::params::positive(
+                "SelfContactModel::friction_velocity",
+                model.friction_velocity,
+            )?;
+        }
         if model.rest_positions.len() != n {
             return Err(ParamError::Input {
                 field: "SelfContactModel::rest_positions",
@@ -767,7 +784,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             free[v as usize] = true;
         }
         let mut terms = StepSelfContact::new(model, free);
-        terms.barrier.set_parallel(self.parallel);
+        terms.set_parallel(self.parallel);
         self.self_contact = Some(Box::new(terms));
         if self.contact_scratch.len() != n {
             self.contact_scratch = vec![SVector::zeros(); n];

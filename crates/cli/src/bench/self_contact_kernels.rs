@@ -146,6 +146,9 @@ pub fn contact_kernels(
         rest_positions: x.clone(),
         distance: dhat,
         stiffness: 1.0,
+        // The barrier's kernels alone: no friction.
+        friction: 0.0,
+        friction_velocity: 1e-3,
     };
     let mut barrier = SelfContactBarrier::new(model, vec![true; x.len()]);
     let candidates = barrier.pairs_near(&x).len();

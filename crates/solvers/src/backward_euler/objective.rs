@@ -33,7 +33,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             None => 0.0,
         };
         if let Some(terms) = &mut self.self_contact {
-            contact += terms.barrier.energy(&self.x);
+            contact += terms.energy(&self.x);
         }
         inertia
             + self.h
@@ -97,7 +97,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             None => 0.0,
         };
         if let Some(terms) = &mut self.self_contact {
-            contact += terms.barrier.energy_change(&self.x, &self.trial_positions);
+            contact += terms.energy_change(&self.x, &self.trial_positions);
         }
         inertia + self.h * self.h * (energy + contact) + dashpot
     }
@@ -128,7 +128,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
             );
         }
         if let Some(terms) = &mut self.self_contact {
-            terms.barrier.add_gradient(&self.x, -1.0, &mut self.force);
+            terms.add_gradient(&self.x, -1.0, &mut self.force);
         }
         let full = self.counter.is_some();
         for (f, &v) in self.free.free_vertices().iter().enumerate() {
@@ -187,9 +187,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
                 );
             }
             if let Some(terms) = &mut self.self_contact {
-                terms
-                    .barrier
-                    .add_gradient(&self.x, 1.0, &mut self.contact_scratch);
+                terms.add_gradient(&self.x, 1.0, &mut self.contact_scratch);
             }
             for (f, g) in self.force.iter_mut().zip(&self.contact_scratch) {
                 *f += g.abs();
@@ -265,7 +263,7 @@ impl<const D: usize> NewtonProblem for BackwardEulerStep<D> {
         let mut wanted = std::mem::take(&mut self.wanted_links);
         wanted.clear();
         if let Some(terms) = &mut self.self_contact {
-            terms.barrier.links(&self.x, &mut wanted);
+            terms.links(&self.x, &mut wanted);
         }
         let replace = std::mem::take(&mut self.links_replaced_next);
         let changed = self.update_links(&mut wanted, replace);
@@ -466,7 +464,7 @@ impl<const D: usize> BackwardEulerStep<D> {
             let full = self.counter.is_some();
             let free = &self.free;
             let column = |v: usize| if full { Some(v) } else { free.free_index(v) };
-            let complete = terms.barrier.add_hessian_into(
+            let complete = terms.add_hessian_into(
                 &self.x,
                 self.h * self.h,
                 definiteness,

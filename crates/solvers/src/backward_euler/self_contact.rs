@@ -3,13 +3,21 @@
 //! edge–edge pairs within d̂), and the cap that keeps a line search from passing any pair through
 //! another.
 //!
+//! With a friction coefficient μ > 0 it also holds the pairs' lagged friction
+//! (`hooke_assembly::self_friction`), lagged at each step's start x_n, and adds h² times its
+//! potential to the barrier's terms: energy, change, gradient, Hessian blocks (positive
+//! semidefinite) and the pattern's links (the pairs lagged at x_n stay coupled for the whole step,
+//! also where they leave d̂). With μ = 0 there is no friction state and nothing to pay.
+//!
 //! This module owns the cap: the longest safe share of a step, by additive continuous collision
 //! detection (`hooke_collision::ccd`) on every pair whose swept boxes come within reach. The terms
-//! themselves (energy, gradient, Hessian blocks, the pattern's links) are the barrier's; obstacles
-//! are in the sibling module `obstacles`.
+//! themselves (energy, gradient, Hessian blocks, the pattern's links) are the barrier's and the
+//! friction's; obstacles are in the sibling module `obstacles`.
 
 pub use hooke_assembly::self_contact::SelfContactModel;
 use hooke_assembly::self_contact::{SelfContactBarrier, SurfacePair};
+use hooke_assembly::self_friction::SelfContactFriction;
+use hooke_assembly::{Definiteness, HessianPattern};
 use hooke_collision::ccd::{edge_edge_ccd, point_triangle_ccd, CcdParams};
 use nalgebra::{SVector, Vector3};
 use rayon::prelude::*;
@@ -36,6 +44,8 @@ pub struct SelfContactState {
 #[derive(Debug)]
 pub(crate) struct StepSelfContact {
     pub(crate) barrier: SelfContactBarrier,
+    /// The pairs' lagged friction; `None` when μ = 0 (no cost).
+    friction: Option<SelfContactFriction>,
     ccd: CcdParams,
     /// The model's κ (N/m), before the adaptive scale.
     base_stiffness: f64,
@@ -44,9 +54,13 @@ pub(crate) struct StepSelfContact {
 impl StepSelfContact {
     /// The terms for `model` over `free.len()` vertices, `free[v]` telling which move.
     pub(crate) fn new(model: SelfContactModel, free: Vec<bool>) -> Self {
+        let friction = (model.friction > 0.0).then(|| {
+            SelfContactFriction::new(model.friction, model.friction_velocity, free.clone())
+        });
         StepSelfContact {
             base_stiffness: model.stiffness,
             barrier: SelfContactBarrier::new(model, free),
+            friction,
             ccd: CcdParams::default(),
         }
     }
@@ -54,6 +68,100 @@ impl StepSelfContact {
     /// Multiply the model's κ by `scale` (the adaptive stiffness's s ≥ 1).
     pub(crate) fn set_stiffness_scale(&mut self, scale: f64) {
         self.barrier.set_stiffness(self.base_stiffness * scale);
+    }
+
+    /// Multiply the lagged friction's normal forces by `scale` (lagged at the model's κ, they
+    /// then carry the adaptive scale of the step's start); nothing without friction.
+    pub(crate) fn scale_friction(&mut self, scale: f64) {
+        if let Some(friction) = &mut self.friction {
+            friction.scale_normal_forces(scale);
+        }
+    }
+
+    /// Run the barrier's and the friction's loops in parallel or serially (the same bits).
+    pub(crate) fn set_parallel(&mut self, parallel: bool) {
+        self.barrier.set_parallel(parallel);
+        if let Some(friction) = &mut self.friction {
+            friction.set_parallel(parallel);
+        }
+    }
+
+    /// Lag the friction at the step's start `start` for a step of `h` (s); nothing without
+    /// friction.
+    pub(crate) fn lag_friction<const D: usize>(&mut self, start: &[SVector<f64, D>], h: f64) {
+        if let Some(friction) = &mut self.friction {
+            friction.lag(&mut self.barrier, start, h);
+        }
+    }
+
+    /// The barrier energy and the friction potential at `x` (J).
+    pub(crate) fn energy<const D: usize>(&mut self, x: &[SVector<f64, D>]) -> f64 {
+        let barrier = self.barrier.energy(x);
+        match &self.friction {
+            Some(friction) => barrier + friction.energy(x),
+            None => barrier,
+        }
+    }
+
+    /// The change of [`StepSelfContact::energy`] from `x` to `x + delta` (J).
+    pub(crate) fn energy_change<const D: usize>(
+        &mut self,
+        x: &[SVector<f64, D>],
+        delta: &[SVector<f64, D>],
+    ) -> f64 {
+        let barrier = self.barrier.energy_change(x, delta);
+        match &self.friction {
+            Some(friction) => barrier + friction.energy_change(x, delta),
+            None => barrier,
+        }
+    }
+
+    /// Add `scale` times the gradient of [`StepSelfContact::energy`] at `x` into `out` (free
+    /// vertices only).
+    pub(crate) fn add_gradient<const D: usize>(
+        &mut self,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        out: &mut [SVector<f64, D>],
+    ) {
+        self.barrier.add_gradient(x, scale, out);
+        if let Some(friction) = &mut self.friction {
+            friction.add_gradient(x, scale, out);
+        }
+    }
+
+    /// Add `scale` times the Hessians at `x` (the barrier's with `definiteness`, the friction's,
+    /// which is positive semidefinite) into `values` of `pattern`; `false` if the pattern lacks a
+    /// block.
+    pub(crate) fn add_hessian_into<const D: usize>(
+        &mut self,
+        x: &[SVector<f64, D>],
+        scale: f64,
+        definiteness: Definiteness,
+        pattern: &HessianPattern<D>,
+        column: impl Fn(usize) -> Option<usize>,
+        values: &mut [f64],
+    ) -> bool {
+        let mut complete =
+            self.barrier
+                .add_hessian_into(x, scale, definiteness, pattern, &column, values);
+        if let Some(friction) = &mut self.friction {
+            complete &= friction.add_hessian_into(x, scale, pattern, &column, values);
+        }
+        complete
+    }
+
+    /// The vertex pairs the Hessian's pattern must hold at `x`: the barrier's pairs within d̂
+    /// there and every pair whose friction is lagged for this step.
+    pub(crate) fn links<const D: usize>(
+        &mut self,
+        x: &[SVector<f64, D>],
+        links: &mut Vec<[u32; 2]>,
+    ) {
+        self.barrier.links(x, links);
+        if let Some(friction) = &self.friction {
+            friction.links(links);
+        }
     }
 
     /// [`collision_free_step`] of the barrier's pairs along `delta` from `x`.

@@ -24,3 +24,4 @@ mod newton_cg;
 mod params;
 mod pd_multilevel;
 mod relaxation;
+mod self_contact_friction;
