@@ -141,6 +141,57 @@ fn gather<const D: usize>(x: &[SVector<f64, D>], v: [u32; 4]) -> [Vector3<f64>; 
     v.map(|i| v3(&x[i as usize]))
 }
 
+/// Add `scale` times the 12×12 Hessian of `terms`, a pair of vertices `v`, into `values` of
+/// `pattern` (block columns by `column`; fixed vertices left out); `false` if the pattern lacks a
+/// block. Shared by the barrier and the friction of the pairs.
+pub(crate) fn add_pair_element<const D: usize>(
+    pattern: &crate::HessianPattern<D>,
+    column: &impl Fn(usize) -> Option<usize>,
+    free: &[bool],
+    v: [u32; 4],
+    terms: &FeatureTerms<12>,
+    scale: f64,
+    values: &mut [f64],
+) -> bool {
+    let columns = v.map(|i| {
+        if free[i as usize] {
+            column(i as usize)
+        } else {
+            None
+        }
+    });
+    pattern.add_element(&columns, terms.hessian.as_slice(), scale, values)
+}
+
+/// Call `add(i, j, block)` with `scale` times every 3×3 block (i, j) of the Hessian of `terms`, a
+/// pair of vertices `v`: i, j free, both (i, j) and (j, i). Shared by the barrier and the
+/// friction of the pairs.
+pub(crate) fn for_each_pair_block<const D: usize>(
+    free: &[bool],
+    v: [u32; 4],
+    terms: &FeatureTerms<12>,
+    scale: f64,
+    add: &mut impl FnMut(usize, usize, SMatrix<f64, D, D>),
+) {
+    for (a, &i) in v.iter().enumerate() {
+        if !free[i as usize] {
+            continue;
+        }
+        for (b, &j) in v.iter().enumerate() {
+            if !free[j as usize] {
+                continue;
+            }
+            let mut block = SMatrix::<f64, D, D>::zeros();
+            for c in 0..3 {
+                for r in 0..3 {
+                    block[(r, c)] = scale * terms.hessian[(3 * a + r, 3 * b + c)];
+                }
+            }
+            add(i as usize, j as usize, block);
+        }
+    }
+}
+
 impl SelfContactBarrier {
     /// The barrier of `model` on a mesh whose vertex `v` is moved by the solver where `free[v]`
     /// (pairs of fixed vertices alone carry no term). The model is taken as given: its triangles
@@ -548,17 +599,9 @@ impl SelfContactBarrier {
     ) -> bool {
         let mut complete = true;
         self.for_each_term(x, Some(definiteness), |free, v, terms| {
-            if !complete {
-                return;
+            if complete {
+                complete = add_pair_element(pattern, &column, free, v, terms, scale, values);
             }
-            let columns = v.map(|i| {
-                if free[i as usize] {
-                    column(i as usize)
-                } else {
-                    None
-                }
-            });
-            complete = pattern.add_element(&columns, terms.hessian.as_slice(), scale, values);
         });
         complete
     }
@@ -575,23 +618,7 @@ impl SelfContactBarrier {
         mut add: impl FnMut(usize, usize, SMatrix<f64, D, D>),
     ) {
         self.for_each_term(x, Some(definiteness), |free, v, terms| {
-            for (a, &i) in v.iter().enumerate() {
-                if !free[i as usize] {
-                    continue;
-                }
-                for (b, &j) in v.iter().enumerate() {
-                    if !free[j as usize] {
-                        continue;
-                    }
-                    let mut block = SMatrix::<f64, D, D>::zeros();
-                    for c in 0..3 {
-                        for r in 0..3 {
-                            block[(r, c)] = scale * terms.hessian[(3 * a + r, 3 * b + c)];
-                        }
-                    }
-                    add(i as usize, j as usize, block);
-                }
-            }
+            for_each_pair_block(free, v, terms, scale, &mut add);
         });
     }
 

@@ -41,7 +41,7 @@ use rayon::prelude::*;
 
 use crate::barrier::{barrier_derivative, friction_f0, friction_f0_change, friction_f1_over_y};
 use crate::deterministic_sum;
-use crate::self_contact::{SelfContactBarrier, SurfacePair};
+use crate::self_contact::{add_pair_element, for_each_pair_block, SelfContactBarrier, SurfacePair};
 use crate::surface_barrier::{edge_edge_distance, point_triangle_distance, FeatureTerms};
 
 /// A position (m).
@@ -619,17 +619,9 @@ impl SelfContactFriction {
     ) -> bool {
         let mut complete = true;
         self.for_each_term(x, |free, v, terms| {
-            if !complete {
-                return;
+            if complete {
+                complete = add_pair_element(pattern, &column, free, v, terms, scale, values);
             }
-            let columns = v.map(|i| {
-                if free[i as usize] {
-                    column(i as usize)
-                } else {
-                    None
-                }
-            });
-            complete = pattern.add_element(&columns, terms.hessian.as_slice(), scale, values);
         });
         complete
     }
@@ -643,23 +635,7 @@ impl SelfContactFriction {
         mut add: impl FnMut(usize, usize, SMatrix<f64, D, D>),
     ) {
         self.for_each_term(x, |free, v, terms| {
-            for (a, &i) in v.iter().enumerate() {
-                if !free[i as usize] {
-                    continue;
-                }
-                for (b, &j) in v.iter().enumerate() {
-                    if !free[j as usize] {
-                        continue;
-                    }
-                    let mut block = SMatrix::<f64, D, D>::zeros();
-                    for c in 0..3 {
-                        for r in 0..3 {
-                            block[(r, c)] = scale * terms.hessian[(3 * a + r, 3 * b + c)];
-                        }
-                    }
-                    add(i as usize, j as usize, block);
-                }
-            }
+            for_each_pair_block(free, v, terms, scale, &mut add);
         });
     }
 
