@@ -18,7 +18,7 @@
 //! - `cloth-drape-40`: the unpinned cloth falling onto a sphere over the ground, 60 frames;
 //! - `cloth-fall-40`: the unpinned cloth thrown down onto the ground at 5 m/s, 30 frames;
 //! - `cloth-twist-40`: the cloth held at two opposite edges, one turning 720° in 4 s, wringing
-//!   itself into a rope, 120 frames (about 5 minutes under newton in a release build).
+//!   itself into a rope, 120 frames (about 3 minutes under newton in a release build, quiet).
 //!
 //! cloth-drape-40, cloth-fall-40 and cloth-twist-40 have self-contact on, which only newton,
 //! newton-cg and lbfgs model (newton-relaxed too: it is newton, whose relaxation does nothing on a
@@ -69,7 +69,7 @@ pub const HARD_SCENES: &[&str] = &[
 ];
 
 /// The scene cases run only when named (`--hard-case NAME`): cloth-twist-40's 120 frames take
-/// about five minutes under Newton and did not end within 81 minutes under L-BFGS, so a default
+/// about three minutes under Newton (quiet machine) and did not end within 81 minutes under L-BFGS, so a default
 /// run of the suite stays within minutes.
 pub const HARD_OPT_IN_SCENES: &[&str] = &["cloth-twist-40"];
 
