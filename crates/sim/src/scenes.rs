@@ -238,9 +238,8 @@ fn lifted_cloth(n: usize, y: f64) -> Result<hooke_mesh::SpringMesh3, SimError> {
 }
 
 /// The barrier of the scenes with self-contact: the defaults with IPC's adaptive stiffness
-/// (docs/contact.md), which takes cloth-drape-40 in 1,121 Newton iterations instead of 2,009 and
-/// cloth-twist-40 in 3,401 instead of 4,093, every frame converged. (The library's default keeps the
-/// stiffness fixed: its energy guarantee on convex obstacles holds only for a fixed stiffness.)
+/// (docs/contact.md), which needs fewer Newton iterations on every one of them. The library's
+/// default keeps the stiffness fixed: its energy guarantee on convex obstacles needs that.
 fn adaptive_barrier() -> BarrierSettings {
     BarrierSettings {
         adaptive_stiffness: Some(AdaptiveStiffness::default()),

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hooke_assembly::FreeDofs;
 use hooke_mesh::Spring;
-use hooke_solvers::backward_euler::SelfContactModel;
+use hooke_solvers::backward_euler::{AdaptiveStiffness, SelfContactModel};
 use hooke_solvers::{BackwardEulerStep, NewtonProblem};
 use nalgebra::Vector3;
 
@@ -83,7 +83,8 @@ fn self_contact_friction_does_not_allocate_per_iteration() {
     let (n, gap, h) = (6, 5e-4, 1.0 / 30.0);
     let (x0, triangles, springs) = two_sheets(n, gap);
     let count = x0.len();
-    for (parallel, mu) in [(true, 0.0), (false, 0.3), (true, 0.3)] {
+    // The adaptive stiffness's gap check after every iterate too, where it is on.
+    for (parallel, mu, adaptive) in [(true, 0.0, false), (false, 0.3, true), (true, 0.3, true)] {
         let free = FreeDofs::new(count, &[]).unwrap();
         let mut step = BackwardEulerStep::<3>::new(&springs, &vec![0.01; count], free, h);
         step.set_parallel(parallel);
@@ -96,6 +97,8 @@ fn self_contact_friction_does_not_allocate_per_iteration() {
             friction_velocity: 1e-3,
         }))
         .unwrap();
+        step.set_adaptive_stiffness(adaptive.then(AdaptiveStiffness::default))
+            .unwrap();
         // The upper sheet slides along x.
         let velocities: Vec<Vector3<f64>> = (0..count)
             .map(|v| Vector3::new(if v >= count / 2 { 0.3 } else { 0.0 }, 0.0, 0.0))
@@ -119,6 +122,7 @@ fn self_contact_friction_does_not_allocate_per_iteration() {
             step.update_pattern(x);
             std::hint::black_box(step.hessian(x).val()[0]);
             std::hint::black_box(step.convexified_hessian(x).unwrap().val()[0]);
+            std::hint::black_box(step.after_iterate(x));
         };
         let (mut x, mut trial) = (start.clone(), start.clone());
         // Warm-up: buffers sized, the pattern holding the pairs.
@@ -143,7 +147,8 @@ fn self_contact_friction_does_not_allocate_per_iteration() {
         let (one, ten) = (measure(1), measure(10));
         assert_eq!(
             one, ten,
-            "μ = {mu}, parallel {parallel}: {one} allocations in one iteration, {ten} in ten"
+            "μ = {mu}, parallel {parallel}, adaptive {adaptive}: {one} allocations in one \
+             iteration, {ten} in ten"
         );
     }
 }
