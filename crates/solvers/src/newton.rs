@@ -1075,6 +1075,10 @@ pub struct Newton {
     cholesky: LinearSolver,
     diagonal_slots: Vec<usize>,
     hessian: Vec<f64>,
+    /// The problem's convexified Hessian at the current iterate, fetched once per iterate
+    /// whatever the number of blends factored there; `convex_current` says whether it is.
+    convex: Vec<f64>,
+    convex_current: bool,
     shifted: Vec<f64>,
     g: Vec<f64>,
     step: Vec<f64>,
@@ -1155,6 +1159,8 @@ impl Newton {
             cholesky: LinearSolver::analyze(pattern, params.cholesky, params.multilevel_fill)?,
             diagonal_slots,
             hessian: vec![0.0; nnz],
+            convex: Vec::new(),
+            convex_current: false,
             shifted: vec![0.0; nnz],
             g: vec![0.0; n],
             step: vec![0.0; n],
@@ -1185,6 +1191,7 @@ impl Newton {
         self.diagonal_slots = diagonal_slots(pattern);
         let nnz = pattern.compute_nnz();
         self.hessian.resize(nnz, 0.0);
+        self.convex_current = false;
         self.shifted.resize(nnz, 0.0);
         self.cholesky =
             LinearSolver::analyze(pattern, self.params.cholesky, self.params.multilevel_fill)
@@ -1476,9 +1483,16 @@ impl Newton {
         self.shifted.copy_from_slice(&self.hessian);
         let mut shift = self.shift;
         if policy == IndefinitePolicy::ConvexBlend && shift > 0.0 {
-            if let Some(convex) = problem.convexified_hessian(x) {
+            if !self.convex_current {
+                if let Some(convex) = problem.convexified_hessian(x) {
+                    self.convex.clear();
+                    self.convex.extend_from_slice(convex.val());
+                    self.convex_current = true;
+                }
+            }
+            if self.convex_current {
                 let beta = shift.min(1.0);
-                for (s, c) in self.shifted.iter_mut().zip(convex.val()) {
+                for (s, c) in self.shifted.iter_mut().zip(&self.convex) {
                     *s += beta * (c - *s);
                 }
                 shift = (shift - 1.0).max(0.0);
@@ -1509,6 +1523,7 @@ impl Newton {
             .definite_hessian(x)
             .expect("has_definite_hessian promised a matrix");
         self.hessian.copy_from_slice(h.val());
+        self.convex_current = false;
         self.shift = 0.0;
         let mut failed = 0;
         loop {
@@ -1770,6 +1785,7 @@ impl Newton {
                         "the Hessian's pattern changed"
                     );
                     self.hessian.copy_from_slice(h.val());
+                    self.convex_current = false;
                 }
                 // Factor H + μD and search along its Newton step; raise μ until a step is accepted.
                 // Set when a search below has left the positive definite factor of the current
@@ -1866,6 +1882,7 @@ impl Newton {
                             .definite_hessian(x)
                             .expect("has_definite_hessian promised a matrix");
                         self.hessian.copy_from_slice(h.val());
+                        self.convex_current = false;
                         continue;
                     }
                     let exhausted = if p.indefinite == IndefinitePolicy::ConvexBlend {

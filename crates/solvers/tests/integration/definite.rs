@@ -482,3 +482,70 @@ fn without_a_definite_hessian_the_policy_falls_back_to_the_blend() {
     let blend = solve(IndefinitePolicy::ConvexBlend, &mut plain);
     assert_eq!(projected.history, blend.history);
 }
+
+/// The blend fetches the convexified Hessian once per iterate, however many blend weights it
+/// factors there (each fetch assembles a whole matrix: with contact, a projected block per pair).
+#[test]
+fn the_blend_fetches_the_convexified_hessian_once_per_iterate() {
+    struct Counting {
+        step: BackwardEulerStep<3>,
+        fetched_at: Vec<Vec<f64>>,
+    }
+    impl NewtonProblem for Counting {
+        fn dim(&self) -> usize {
+            self.step.dim()
+        }
+        fn objective(&mut self, x: &[f64]) -> f64 {
+            self.step.objective(x)
+        }
+        fn objective_change(&mut self, x: &[f64], trial: &[f64]) -> f64 {
+            self.step.objective_change(x, trial)
+        }
+        fn gradient(&mut self, x: &[f64], g: &mut [f64]) {
+            self.step.gradient(x, g)
+        }
+        fn pattern(&self) -> faer::sparse::SymbolicSparseColMatRef<'_, usize> {
+            self.step.pattern()
+        }
+        fn hessian(&mut self, x: &[f64]) -> SparseColMatRef<'_, usize, f64> {
+            self.step.hessian(x)
+        }
+        fn shift_diagonal(&self) -> &[f64] {
+            self.step.shift_diagonal()
+        }
+        fn has_convexified_hessian(&self) -> bool {
+            true
+        }
+        fn convexified_hessian(&mut self, x: &[f64]) -> Option<SparseColMatRef<'_, usize, f64>> {
+            self.fetched_at.push(x.to_vec());
+            self.step.convexified_hessian(x)
+        }
+    }
+    let (mesh, x) = crushed_cloth(12, 0.6);
+    let (step, start) = step_at(&mesh, &[0, 11], &x, false);
+    let mut counting = Counting {
+        step,
+        fetched_at: Vec::new(),
+    };
+    let mut unknowns = start.clone();
+    let params = NewtonParams {
+        indefinite: IndefinitePolicy::ConvexBlend,
+        max_iterations: 200,
+        ..projected_params(1e-8)
+    };
+    let report = Newton::new(counting.pattern(), params)
+        .unwrap()
+        .minimize(&mut counting, &mut unknowns)
+        .unwrap();
+    assert_eq!(report.stop, StopReason::Converged);
+    // A hard state: several blends factored at some iterates.
+    assert!(report.factorizations > report.iterations + 1, "{report:#?}");
+    let fetched = &counting.fetched_at;
+    assert!(!fetched.is_empty() && fetched.len() <= report.iterations + 1);
+    for (k, a) in fetched.iter().enumerate() {
+        assert!(
+            fetched[k + 1..].iter().all(|b| a != b),
+            "fetched twice at one iterate"
+        );
+    }
+}
