@@ -28,3 +28,4 @@ mod self_contact;
 mod self_contact_friction;
 mod sph_cli;
 mod tetrahedralize_cli;
+mod threads;
