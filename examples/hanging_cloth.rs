@@ -1,4 +1,6 @@
 //! The README's library example: a 20×20 cloth pinned at two corners swings down for one second.
+//!
+//! `cargo run --release --example hanging_cloth`; `cargo test` runs it too.
 
 // README: begin
 use hooke::mesh::generators;
@@ -32,3 +34,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 // README: end
+
+#[test]
+fn the_cloth_hangs_for_a_second() {
+    main().unwrap();
+}

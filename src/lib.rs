@@ -31,8 +31,3 @@ pub use hooke_mesh as mesh;
 pub use hooke_sim as sim;
 pub use hooke_solvers as solvers;
 pub use hooke_sph as sph;
-
-/// The README's code blocks, compiled and run as doc tests so that the README stays true.
-#[cfg(doctest)]
-#[doc = include_str!("../README.md")]
-pub struct ReadmeDoctests;

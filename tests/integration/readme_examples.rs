@@ -1,7 +1,7 @@
 //! The README's library examples are the examples' own code, not copies that drift: each
 //! example's lines between `// README: begin` and `// README: end` are one of README.md's code
-//! blocks, verbatim (the examples compile and run under `cargo test`; the README's blocks
-//! besides as doc tests). The README's scene-file example is loaded and run as it stands.
+//! blocks, verbatim (the examples compile and run under `cargo test`, so the README's blocks do:
+//! they are not doc tests as well). The README's scene-file example is loaded and run as it stands.
 
 /// The code blocks of `markdown` (the lines between a fence line starting with ``` and the next).
 fn code_blocks(markdown: &str) -> Vec<String> {
