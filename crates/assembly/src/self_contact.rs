@@ -141,6 +141,19 @@ fn gather<const D: usize>(x: &[SVector<f64, D>], v: [u32; 4]) -> [Vector3<f64>; 
     v.map(|i| v3(&x[i as usize]))
 }
 
+/// Push the vertex pairs (both free, lower index first) that a pair of primitives over the
+/// vertices `v` couples: the off-diagonal blocks its Hessian needs in a pattern.
+pub(crate) fn push_pair_links(free: &[bool], v: [u32; 4], links: &mut Vec<[u32; 2]>) {
+    for a in 0..4 {
+        for b in a + 1..4 {
+            let (i, j) = (v[a], v[b]);
+            if free[i as usize] && free[j as usize] {
+                links.push([i.min(j), i.max(j)]);
+            }
+        }
+    }
+}
+
 /// Add `scale` times the 12×12 Hessian of `terms`, a pair of vertices `v`, into `values` of
 /// `pattern` (block columns by `column`; fixed vertices left out); `false` if the pattern lacks a
 /// block. Shared by the barrier and the friction of the pairs.
@@ -627,15 +640,7 @@ impl SelfContactBarrier {
     pub fn links<const D: usize>(&mut self, x: &[SVector<f64, D>], links: &mut Vec<[u32; 2]>) {
         self.active(x);
         for &k in &self.active {
-            let v = self.pairs[k as usize].vertices();
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    let (i, j) = (v[a], v[b]);
-                    if self.free[i as usize] && self.free[j as usize] {
-                        links.push([i.min(j), i.max(j)]);
-                    }
-                }
-            }
+            push_pair_links(&self.free, self.pairs[k as usize].vertices(), links);
         }
     }
 

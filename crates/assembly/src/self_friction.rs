@@ -41,7 +41,9 @@ use rayon::prelude::*;
 
 use crate::barrier::{barrier_derivative, friction_f0, friction_f0_change, friction_f1_over_y};
 use crate::deterministic_sum;
-use crate::self_contact::{add_pair_element, for_each_pair_block, SelfContactBarrier, SurfacePair};
+use crate::self_contact::{
+    add_pair_element, for_each_pair_block, push_pair_links, SelfContactBarrier, SurfacePair,
+};
 use crate::surface_barrier::{edge_edge_distance, point_triangle_distance, FeatureTerms};
 
 /// A position (m).
@@ -644,15 +646,7 @@ impl SelfContactFriction {
     /// where a pair has left d̂ (its friction stays until the next lag).
     pub fn links(&self, links: &mut Vec<[u32; 2]>) {
         for pair in &self.pairs {
-            let v = pair.vertices;
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    let (i, j) = (v[a], v[b]);
-                    if self.free[i as usize] && self.free[j as usize] {
-                        links.push([i.min(j), i.max(j)]);
-                    }
-                }
-            }
+            push_pair_links(&self.free, pair.vertices, links);
         }
     }
 }

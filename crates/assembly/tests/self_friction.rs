@@ -19,6 +19,10 @@ use hooke_collision::distance::{
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 use proptest::prelude::*;
 
+#[path = "common/sheets.rs"]
+mod sheets;
+use sheets::two_sheets;
+
 type Vec3 = Vector3<f64>;
 
 /// Reach d̂ (m), stiffness κ (N/m), friction μ and smoothing length ε = ε_v h (m) of every case:
@@ -343,41 +347,6 @@ fn the_normal_falls_back_to_the_shape_when_the_gap_is_tiny() {
     assert!((f.normal.z.abs() - 1.0).abs() < 1e-15, "{:?}", f.normal);
 }
 
-/// Two 5×5 sheets on the unit square in the xz-plane, the second `gap` above the first and
-/// shifted by (sx, sz) spacings, jittered.
-fn two_sheets(gap: f64, sx: f64, sz: f64, jitter: f64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let n = 5;
-    let s = 1.0 / (n - 1) as f64;
-    let mut positions = Vec::new();
-    for (sheet, (dx, dy, dz)) in [(0.0, 0.0, 0.0), (sx * s, gap, sz * s)]
-        .into_iter()
-        .enumerate()
-    {
-        for j in 0..n {
-            for i in 0..n {
-                let k = (sheet * n * n + j * n + i) as f64;
-                let wobble = Vec3::new((k * 1.7).sin(), (k * 2.3).sin(), (k * 3.1).sin());
-                positions
-                    .push(Vec3::new(i as f64 * s + dx, dy, j as f64 * s + dz) + wobble * jitter);
-            }
-        }
-    }
-    let mut triangles = Vec::new();
-    for sheet in 0..2u32 {
-        let o = sheet * (n * n) as u32;
-        let n = n as u32;
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let (a, b) = (o + j * n + i, o + j * n + i + 1);
-                let (c, d) = (a + n, b + n);
-                triangles.push([a, c, b]);
-                triangles.push([b, c, d]);
-            }
-        }
-    }
-    (positions, triangles)
-}
-
 fn surface(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
@@ -432,7 +401,7 @@ proptest! {
         jitter in 1e-6..5e-5f64,
         slide in (-3.0..3.0f64, -3.0..3.0f64),
     ) {
-        let (x0, triangles) = two_sheets(gap, sx, sz, jitter);
+        let (x0, triangles) = two_sheets(5, gap, sx, sz, jitter);
         let mut f = surface(&x0, &triangles, &x0, true);
         prop_assert!(!f.pairs().is_empty(), "the sheets are within d̂");
         let eps = f.smoothing_length();
@@ -509,7 +478,7 @@ proptest! {
 /// elsewhere (another configuration, then the start) lags the same pairs in the same order.
 #[test]
 fn the_lag_does_not_depend_on_the_barriers_history() {
-    let (x0, triangles) = two_sheets(5e-4, 0.3, 0.6, 2e-5);
+    let (x0, triangles) = two_sheets(5, 5e-4, 0.3, 0.6, 2e-5);
     let model = SelfContactModel {
         triangles: triangles.clone(),
         rest_positions: x0.clone(),
@@ -547,7 +516,7 @@ fn the_lag_does_not_depend_on_the_barriers_history() {
 /// Scaling the normal forces scales the potential and its gradient by the same factor.
 #[test]
 fn scaled_normal_forces_scale_the_terms() {
-    let (x0, triangles) = two_sheets(5e-4, 0.3, 0.6, 2e-5);
+    let (x0, triangles) = two_sheets(5, 5e-4, 0.3, 0.6, 2e-5);
     let mut f = surface(&x0, &triangles, &x0, false);
     let x: Vec<Vec3> = x0.iter().map(|p| p + Vec3::new(2e-4, 0.0, -1e-4)).collect();
     let (energy, g) = (f.energy(&x), gradient(&mut f, &x));
@@ -559,7 +528,7 @@ fn scaled_normal_forces_scale_the_terms() {
 /// μ = 0 lags nothing: no terms, no links.
 #[test]
 fn no_friction_lags_nothing() {
-    let (x0, triangles) = two_sheets(5e-4, 0.3, 0.6, 2e-5);
+    let (x0, triangles) = two_sheets(5, 5e-4, 0.3, 0.6, 2e-5);
     let model = SelfContactModel {
         triangles,
         rest_positions: x0.clone(),

@@ -6,9 +6,6 @@
 //! about one run in three), so each figure is the fewest of three identical measurements: an
 //! allocation per iteration shows in every one of them.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use faer::sparse::{SparseColMat, Triplet};
 use hooke_assembly::FreeDofs;
 use hooke_mesh::generators;
@@ -23,33 +20,9 @@ use nalgebra::{Matrix3, Vector3};
 mod common;
 use common::inertial_target;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Allocations made while `f` runs.
-fn allocations(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
-    f();
-    ALLOCATIONS.load(Ordering::SeqCst) - before
-}
+#[path = "common/counting.rs"]
+mod counting;
+use counting::allocations;
 
 /// Runs `f` on one of rayon's threads. The solvers' parallel loops and sums (above 8,192 terms)
 /// started from a thread outside rayon's pool go through its shared job queue, whose storage grows

@@ -5,77 +5,17 @@
 //! counting global allocator, in one test function (no other test allocates concurrently), the
 //! fewest of three identical measurements (the harness's thread allocates on its own schedule).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use hooke_assembly::FreeDofs;
-use hooke_mesh::Spring;
 use hooke_solvers::backward_euler::{AdaptiveStiffness, SelfContactModel};
 use hooke_solvers::{BackwardEulerStep, NewtonProblem};
 use nalgebra::Vector3;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
-    f();
-    ALLOCATIONS.load(Ordering::SeqCst) - before
-}
-
-/// Two n×n sheets on the unit square of the xz-plane, the second `gap` above the first and
-/// shifted by a third of a spacing; springs along the grid's edges.
-fn two_sheets(n: usize, gap: f64) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>, Vec<Spring>) {
-    let s = 1.0 / (n - 1) as f64;
-    let mut positions = Vec::new();
-    for (dy, d) in [(0.0, 0.0), (gap, s / 3.0)] {
-        for j in 0..n {
-            for i in 0..n {
-                positions.push(Vector3::new(i as f64 * s + d, dy, j as f64 * s + d));
-            }
-        }
-    }
-    let (mut triangles, mut springs) = (Vec::new(), Vec::new());
-    for sheet in 0..2 {
-        let o = (sheet * n * n) as u32;
-        let n = n as u32;
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let (a, b) = (o + j * n + i, o + j * n + i + 1);
-                let (c, d) = (a + n, b + n);
-                triangles.push([a, c, b]);
-                triangles.push([b, c, d]);
-                for (p, q) in [(a, b), (a, c), (b, c)] {
-                    springs.push(Spring {
-                        i: p,
-                        j: q,
-                        stiffness: 1e3,
-                        rest_length: s,
-                    });
-                }
-            }
-        }
-    }
-    (positions, triangles, springs)
-}
+#[path = "common/counting.rs"]
+mod counting;
+use counting::allocations;
+#[path = "common/sheets.rs"]
+mod sheets;
+use sheets::two_sheets;
 
 #[test]
 fn self_contact_friction_does_not_allocate_per_iteration() {

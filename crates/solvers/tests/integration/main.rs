@@ -6,6 +6,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/sheets.rs"]
+mod sheets;
 #[path = "../waved_step/mod.rs"]
 mod waved_step;
 

@@ -7,52 +7,17 @@
 use hooke_assembly::self_contact::SelfContactBarrier;
 use hooke_assembly::self_friction::SelfContactFriction;
 use hooke_assembly::FreeDofs;
-use hooke_mesh::Spring;
 use hooke_solvers::backward_euler::SelfContactModel;
 use hooke_solvers::{BackwardEulerStep, NewtonProblem};
 use nalgebra::{DMatrix, Vector3};
+
+use crate::sheets::two_sheets;
 
 type V = Vector3<f64>;
 
 const D_HAT: f64 = 1e-3;
 const H: f64 = 1.0 / 30.0;
 const MU: f64 = 0.3;
-
-/// Two n×n sheets on the unit square of the xz-plane, the second `gap` above the first and
-/// shifted by a third of a spacing; springs along the grid's edges.
-fn two_sheets(n: usize, gap: f64) -> (Vec<V>, Vec<[u32; 3]>, Vec<Spring>) {
-    let s = 1.0 / (n - 1) as f64;
-    let mut positions = Vec::new();
-    for (dy, d) in [(0.0, 0.0), (gap, s / 3.0)] {
-        for j in 0..n {
-            for i in 0..n {
-                positions.push(V::new(i as f64 * s + d, dy, j as f64 * s + d));
-            }
-        }
-    }
-    let (mut triangles, mut springs) = (Vec::new(), Vec::new());
-    for sheet in 0..2 {
-        let o = (sheet * n * n) as u32;
-        let n = n as u32;
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let (a, b) = (o + j * n + i, o + j * n + i + 1);
-                let (c, d) = (a + n, b + n);
-                triangles.push([a, c, b]);
-                triangles.push([b, c, d]);
-                for (i, j) in [(a, b), (a, c), (b, c)] {
-                    springs.push(Spring {
-                        i,
-                        j,
-                        stiffness: 1e3,
-                        rest_length: s,
-                    });
-                }
-            }
-        }
-    }
-    (positions, triangles, springs)
-}
 
 fn flatten(x: &[V]) -> Vec<f64> {
     x.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
